@@ -1,0 +1,1 @@
+"""JAX backend: the same compute roles as pgc_torch. Keep this file light (no jax import)."""

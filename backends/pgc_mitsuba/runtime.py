@@ -1,0 +1,77 @@
+"""Importing Mitsuba for PGC: the LLVM (CPU) differentiable RGB variant, with a working libLLVM found.
+
+Dr.Jit's LLVM backend crashes with Debian's libLLVM-15 ("Cannot select fminimum"); LLVM 19 works. Unless
+the user set ``DRJIT_LIBLLVM_PATH``, we point it at the newest libLLVM >= 19 found on the system before
+Dr.Jit loads. Use :func:`mitsuba` instead of ``import mitsuba``.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import re
+from typing import Any
+
+import numpy as np
+
+DEFAULT_VARIANT = "llvm_ad_rgb"
+_SEARCH = ("/usr/lib/x86_64-linux-gnu", "/usr/lib/aarch64-linux-gnu", "/usr/lib/llvm-*/lib", "/usr/lib",
+           "/usr/local/lib", "/opt/homebrew/opt/llvm/lib")
+
+
+def find_libllvm(min_major: int = 19) -> str | None:
+    """Path of the newest libLLVM shared library with major version >= ``min_major``, or None."""
+    best: tuple[int, str] | None = None
+    for folder in _SEARCH:
+        for path in glob.glob(os.path.join(folder, "libLLVM*.so*")):
+            m = re.search(r"libLLVM(?:-|\.so\.)(\d+)", os.path.basename(path))
+            if m and int(m.group(1)) >= min_major and (best is None or int(m.group(1)) > best[0]):
+                best = (int(m.group(1)), path)
+    return None if best is None else best[1]
+
+
+def mitsuba(variant: str = DEFAULT_VARIANT) -> Any:
+    """Import Mitsuba with ``variant`` set (LLVM library located first) and return the module."""
+    if "DRJIT_LIBLLVM_PATH" not in os.environ:
+        lib = find_libllvm()
+        if lib is not None:
+            os.environ["DRJIT_LIBLLVM_PATH"] = lib
+    import mitsuba as mi
+
+    if mi.variant() != variant:
+        mi.set_variant(variant)
+    return mi
+
+
+def mesh_to_mitsuba(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh", uv: np.ndarray | None = None,
+                    face_uv: np.ndarray | None = None, bsdf: Any = None, vertex_normals: bool = False) -> Any:
+    """Build an ``mi.Mesh`` from arrays. Positions are split per face-corner where UV seams require it.
+
+    ``uv`` with ``face_uv``: per-corner texture coordinates (v up, as in :class:`pgc.types.Mesh`); Mitsuba
+    samples textures with v up as well after its own flip, so they are passed unchanged.
+    """
+    mi = mitsuba()
+    vertices = np.asarray(vertices, dtype=np.float32)
+    faces = np.asarray(faces, dtype=np.int64)
+    if uv is not None and face_uv is not None:
+        # One Mitsuba vertex per distinct (position, uv) corner pair.
+        corners = np.stack([faces.reshape(-1), np.asarray(face_uv, np.int64).reshape(-1)], axis=1)
+        pairs, inverse = np.unique(corners, axis=0, return_inverse=True)
+        positions, texcoords = vertices[pairs[:, 0]], np.asarray(uv, np.float32)[pairs[:, 1]]
+        tri = inverse.reshape(-1, 3)
+    else:
+        positions, texcoords, tri = vertices, None, faces
+    props = mi.Properties()
+    if bsdf is not None:
+        props["bsdf"] = bsdf
+    m = mi.Mesh(name, vertex_count=len(positions), face_count=len(tri), has_vertex_normals=vertex_normals,
+                has_vertex_texcoords=texcoords is not None, props=props)
+    params = mi.traverse(m)
+    params["vertex_positions"] = mi.Float(positions.reshape(-1))
+    params["faces"] = mi.UInt32(tri.astype(np.uint32).reshape(-1))
+    if texcoords is not None:
+        params["vertex_texcoords"] = mi.Float(texcoords.reshape(-1))
+    params.update()
+    if vertex_normals:
+        m.recompute_vertex_normals()
+    return m

@@ -1,0 +1,1 @@
+"""File formats. Each reader validates and names the file and field at fault."""

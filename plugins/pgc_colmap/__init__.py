@@ -1,0 +1,1 @@
+"""colmap plugin for PGC. Keep this file light (no colmap import)."""

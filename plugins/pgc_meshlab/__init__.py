@@ -1,0 +1,1 @@
+"""meshlab plugin for PGC. Keep this file light (no meshlab import)."""

@@ -1,0 +1,1 @@
+"""onnx plugin for PGC. Keep this file light (no onnx import)."""

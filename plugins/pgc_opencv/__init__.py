@@ -1,0 +1,1 @@
+"""opencv plugin for PGC. Keep this file light (no opencv import)."""

@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# Idempotent installer: system libraries (Debian), a virtualenv in .venv with the pinned packages,
+# PGC itself (editable) and the example third-party plugin. A second run with nothing changed takes
+# under a second (a stamp file records the hash of everything that decides what is installed).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+VENV=${PGC_VENV:-.venv}
+PY=${PYTHON:-python3}
+
+need_pkgs=()
+for p in libllvm19 libusb-1.0-0 libgl1 libegl1 libx11-6 libgomp1; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || need_pkgs+=("$p")
+done
+if [ ${#need_pkgs[@]} -gt 0 ]; then
+  if command -v apt-get >/dev/null 2>&1; then
+    SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+    echo "[setup] installing system packages: ${need_pkgs[*]}"
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${need_pkgs[@]}" >/dev/null
+  else
+    echo "[setup] warning: no apt-get; please install ${need_pkgs[*]} yourself" >&2
+  fi
+fi
+
+stamp_src=$(cat pyproject.toml scripts/setup.sh examples/pgc-example-plugin/pyproject.toml | sha256sum | cut -d' ' -f1)
+stamp_file="$VENV/.pgc-setup-stamp"
+if [ -f "$stamp_file" ] && [ "$(cat "$stamp_file")" = "$stamp_src" ] && [ -x "$VENV/bin/pgc" ]; then
+  exit 0
+fi
+
+[ -x "$VENV/bin/python" ] || "$PY" -m venv "$VENV"
+PIP="$VENV/bin/python -m pip"
+# pip here may print one warning per missing local index folder; keep the log readable.
+pip_quiet() {
+  local rc
+  set +e
+  $PIP "$@" 2>&1 | grep -v -e "^WARNING: Location" -e "BuildBackendWarning" -e "^ *!!" -e "^ *\*\*\*"
+  rc=${PIPESTATUS[0]}
+  set -e
+  return "$rc"
+}
+pip_quiet install -q --upgrade pip setuptools wheel
+# torch first and pinned: the CPU wheel lies on local disk; a bare `torch` would pull a CUDA build.
+pip_quiet install -q "torch==2.13.0"
+pip_quiet install -q -e ".[all,dev]"
+pip_quiet install -q -e examples/pgc-example-plugin
+echo "$stamp_src" > "$stamp_file"
+echo "[setup] environment ready in $VENV"
