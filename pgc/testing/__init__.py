@@ -1,0 +1,1 @@
+"""Testing kit for plugin authors: an isolated registry fixture and per-role conformance suites."""
