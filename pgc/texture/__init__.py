@@ -1,0 +1,1 @@
+"""Texture space: UV-atlas rasterisation, back-projection of views, colour correction, merging."""
