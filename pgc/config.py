@@ -50,11 +50,11 @@ def stage_settings() -> dict[str, type[Options]]:
     return out
 
 
-def _deep_merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
+def deep_merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
     out = copy.deepcopy(base)
     for key, value in override.items():
         if isinstance(value, dict) and isinstance(out.get(key), dict):
-            out[key] = _deep_merge(out[key], value)
+            out[key] = deep_merge(out[key], value)
         else:
             out[key] = copy.deepcopy(value)
     return out
@@ -130,7 +130,7 @@ def resolve(data: dict[str, Any] | None = None, registry: Registry | None = None
             require_available: bool = True) -> RunConfig:
     """Validate ``data`` (a parsed TOML mapping, merged over the defaults) against the registry."""
     data = data or {}
-    raw = _deep_merge(load_toml(DEFAULT_CONFIG), data)
+    raw = deep_merge(load_toml(DEFAULT_CONFIG), data)
     block = raw.pop("plugins", {}).get("block", [])
     if not isinstance(block, list) or not all(isinstance(b, str) for b in block):
         raise PGCConfigError(f"{source}: [plugins] block must be a list of names")
@@ -148,7 +148,7 @@ def resolve(data: dict[str, Any] | None = None, registry: Registry | None = None
         table = dict(table)
         use = table.pop("use", None)
         names = [use] if isinstance(use, str) else use
-        if not names or not all(isinstance(n, str) for n in names):
+        if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
             raise PGCConfigError(f"{where} use = {use!r}: give an implementation name or a list of names; "
                                  f"registered: {', '.join(i.name for i in registry.list(role)) or '(none)'}")
         user_role = role in data

@@ -1,17 +1,33 @@
-"""``pgc eval``: metrics of a run against ground truth."""
+"""``pgc eval``: metrics of a rendered run against ground truth."""
 
 from __future__ import annotations
 
 import argparse
 
-from pgc.errors import PGCError
+from pgc.commands._common import add_run_options, emit, load_config, reporter_for
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("eval", help="metrics of a run against ground truth (not available yet)",
-                       description="Compare the frames of a run with ground truth: PSNR, SSIM, FSIM and LPIPS for the hybrid render and the 3DGS-only and PBR-only ablations. NOT AVAILABLE YET in this version.")
+    p = sub.add_parser(
+        "eval", help="metrics of a run against ground truth",
+        description="Compare the rendered frames of a run with ground truth: PSNR, SSIM, FSIM and LPIPS (the "
+                    "configured metrics) of the hybrid render and of the 3DGS-only and PBR-only ablations, per "
+                    "frame and mean, on the garment region. --gt is a synthetic capture (its ground truth is "
+                    "rendered on the run's own simulated geometry) or a folder of frame_XXXX_CAMERA.png images.",
+        epilog="example: pgc eval runs/spooky --gt runs/capture --out spooky_metrics.json")
+    p.add_argument("run", help="run folder (rendered with pgc render)")
+    p.add_argument("--gt", required=True, help="synthetic capture folder or image folder")
+    p.add_argument("--out", help="metrics JSON path (default RUN/metrics.json)")
+    add_run_options(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    raise PGCError("'pgc eval' is not available yet in this version of PGC")
+    from pgc.pipeline.evaluate import VARIANTS, evaluate_run
+
+    registry, reporter = reporter_for(args)
+    res = evaluate_run(args.run, args.gt, load_config(args, registry), reporter, args.out)
+    lines = [f"{v:>10}: " + "  ".join(f"{k}={x:.4f}" for k, x in res[v].items() if k != "per_frame")
+             for v in VARIANTS]
+    emit(args, res, "\n".join(lines))
+    return 0

@@ -11,7 +11,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                        description="List every implementation registered through the 'pgc' entry points, "
                                    "by role, with its provider and availability. Unavailable ones say what to "
                                    "install; plugins that failed to load show their error.")
-    p.add_argument("--role", help="only this role")
+    from pgc.registry import ROLES
+
+    p.add_argument("--role", choices=list(ROLES), help="only this role")
     p.add_argument("--json", action="store_true", help="machine-readable list of objects")
     p.set_defaults(func=run)
 

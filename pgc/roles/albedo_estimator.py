@@ -19,6 +19,8 @@ from pgc.roles._base import RoleImplementation
 
 class AlbedoEstimator(RoleImplementation, ABC):
     role = "albedo_estimator"
+    needs_shading: bool = False
+    """True when :meth:`estimate` requires the ``shading`` image (the pipeline then renders it)."""
 
     @abstractmethod
     def estimate(self, image: np.ndarray, mask: np.ndarray | None = None,

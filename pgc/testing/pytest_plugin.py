@@ -1,4 +1,10 @@
-"""pytest plugin (entry point ``pytest11``): fixtures for PGC plugin authors."""
+"""pytest plugin (entry point ``pytest11``, active wherever PGC is installed): fixtures for plugin authors.
+
+- ``pgc_registry``: an isolated, empty :class:`pgc.registry.Registry` (no entry points loaded, nothing
+  blocked) to register implementations into by hand.
+- The per-role conformance suites live in :mod:`pgc.testing.conformance`: subclass one in a ``Test*`` class
+  and override its ``implementation`` fixture (docs/writing-a-plugin.md).
+"""
 
 from __future__ import annotations
 

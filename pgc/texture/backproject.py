@@ -22,18 +22,22 @@ class ViewTexture:
 
 def project_view(geom: TexelGeometry, mesh: Mesh, camera: Camera, image: np.ndarray,
                  mask: np.ndarray | None = None, vertices: np.ndarray | None = None,
-                 min_cos: float = 0.1) -> ViewTexture:
+                 min_cos: float = 0.1, occluder: Mesh | None = None) -> ViewTexture:
     """Colours of ``image`` seen by ``camera`` at every texel of ``geom`` (visibility by z-buffer).
 
     Weight = cos(angle between normal and direction to the camera) (texels seen under a grazing angle
     below ``min_cos`` are dropped) x pixel footprint (f / z)^2 normalised to the view's maximum, x mask.
+    ``occluder``: a mesh containing this one (e.g. the full body mesh around a garment) whose z-buffer
+    decides visibility, so that the body hides garment texels behind it.
     """
     h, w = geom.face.shape
     valid = geom.valid.reshape(-1)
     pts = geom.position.reshape(-1, 3)[valid]
     fids = geom.face.reshape(-1)[valid]
-    raster = render_faces(mesh, camera, vertices)
-    seen, xy = visible_points(pts, fids, raster, camera)
+    if occluder is None:
+        seen, xy = visible_points(pts, fids, render_faces(mesh, camera, vertices), camera)
+    else:
+        seen, xy = visible_points(pts, None, render_faces(occluder, camera), camera)
     to_cam = camera.center - pts
     dist = np.linalg.norm(to_cam, axis=1)
     cos = np.einsum("ij,ij->i", geom.normal.reshape(-1, 3)[valid], to_cam) / np.maximum(dist, 1e-12)

@@ -15,12 +15,13 @@ def render_faces(mesh: Mesh, camera: Camera, vertices: np.ndarray | None = None)
     return rasterize(xy[mesh.faces], camera.height, camera.width, tri_depth=z[mesh.faces])
 
 
-def visible_points(points: np.ndarray, faces_of_points: np.ndarray, raster: Raster, camera: Camera,
+def visible_points(points: np.ndarray, faces_of_points: np.ndarray | None, raster: Raster, camera: Camera,
                    depth_tolerance: float = 2e-3) -> tuple[np.ndarray, np.ndarray]:
     """Which surface ``points`` (N, 3) on faces ``faces_of_points`` (N,) are seen by ``camera``.
 
     A point is visible when it projects inside the image in front of the camera and either the z-buffer
-    shows its own face there or its depth is within ``depth_tolerance`` (relative) of the z-buffer.
+    shows its own face there or its depth is within ``depth_tolerance`` (relative) of the z-buffer
+    (``faces_of_points`` None: the raster is of another mesh, e.g. an occluder; depth test only).
     Returns (visible (N,) bool, pixel coordinates (N, 2)).
     """
     xy, z = camera.project(points)
@@ -28,7 +29,7 @@ def visible_points(points: np.ndarray, faces_of_points: np.ndarray, raster: Rast
     inside &= (xy[:, 0] >= 0) & (xy[:, 0] < camera.width) & (xy[:, 1] >= 0) & (xy[:, 1] < camera.height)
     col = np.clip(np.where(inside, xy[:, 0], 0).astype(np.int64), 0, camera.width - 1)
     row = np.clip(np.where(inside, xy[:, 1], 0).astype(np.int64), 0, camera.height - 1)
-    same_face = raster.face[row, col] == faces_of_points
+    same_face = False if faces_of_points is None else raster.face[row, col] == faces_of_points
     zb = raster.depth[row, col]
     close = np.abs(zb - z) <= depth_tolerance * np.maximum(z, 1e-9)
     return inside & (same_face | close), xy

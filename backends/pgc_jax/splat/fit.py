@@ -1,0 +1,339 @@
+"""The mesh-embedded splat fit (METHOD.md section 2) on the JAX rasteriser; same loss, schedule, settings and
+model selection as the torch fit (``pgc.pipeline.settings_splats.FitSplatsSettings``).
+
+Initialise by uniform triangle point picking on the full mesh, optimise ``0.8 L1 + 0.2 (1 - SSIM)`` on
+sRGB-encoded whole images blended over the background plus the mask loss outside the contour band, with Adam
+(paper learning rates, exponential position decay) and the SH degree raised on a schedule. Then prune
+Gaussians that contribute nothing, keep the smallest top-contribution subset and the lowest SH degree whose
+held-out PSNR is within a margin, optionally drop back-facing faces' Gaussians, keep the garment's.
+
+XLA specifics: one jitted training step serves every SH degree (higher coefficients are masked, not sliced)
+and every view of one image size; chunk tables are padded to a capacity that only grows (by >= 25 %), so a
+whole fit compiles a handful of times. Checkpoints are ``.npz`` files (no pickle), written atomically.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from pgc.errors import PGCDataError
+from pgc.events import Reporter
+from pgc.io.atomic import atomic_path
+from pgc.metrics.psnr import psnr
+from pgc.pipeline.settings_splats import FitSplatsSettings
+from pgc.roles.splat_renderer import SplatFit
+from pgc.splats.binding import triangle_frames as np_triangle_frames
+from pgc.splats.init import sample_on_mesh
+from pgc.splats.reference import background_image
+from pgc.types import Capture, GaussianSet, Mesh
+from pgc_jax.splat import plan
+from pgc_jax.splat.binding import apply_frames
+from pgc_jax.splat.binning import Bins, bucket
+from pgc_jax.splat.losses import linear_to_srgb, ssim
+from pgc_jax.splat.render import CameraArrays, camera_arrays, make_bins, render_bound
+
+CALIBRATION_STEPS = 8
+COUNT_FRACTIONS = (0.3, 0.45, 0.6, 0.8)
+NAMES = ("means", "quats", "log_scales", "opacity_logits", "sh")
+ADAM_B1, ADAM_B2, ADAM_EPS = 0.9, 0.999, 1e-15
+
+
+@dataclass
+class _View:
+    camera: Any
+    cam: CameraArrays
+    image: np.ndarray          # (H, W, 3) linear, for metrics
+    target: jnp.ndarray        # (H, W, 3) sRGB-encoded
+    background: jnp.ndarray    # (H, W, 3) linear
+    mask: jnp.ndarray          # (H, W) (zeros when the view has none)
+    band: jnp.ndarray          # (H, W) mask-loss weights: 1 outside the contour band (zeros without a mask)
+
+
+def _prepare(capture: Capture, band: float, dtype) -> list[_View]:
+    views = []
+    for v in capture.views:
+        h, w = v.camera.height, v.camera.width
+        bg = jnp.asarray(background_image(v.background, h, w), dtype)
+        mask = np.zeros((h, w), np.float32) if v.mask is None else v.mask
+        weight = np.zeros((h, w), np.float32) if v.mask is None else plan.outside_band(v.mask, band)
+        views.append(_View(v.camera, camera_arrays(v.camera, dtype), v.image,
+                           linear_to_srgb(jnp.asarray(v.image, dtype)), bg, jnp.asarray(mask, dtype),
+                           jnp.asarray(weight, dtype)))
+    return views
+
+
+def _sh_mask(degree: int, dtype) -> jnp.ndarray:
+    """(16,) 1 for the coefficients of degrees <= ``degree``."""
+    return jnp.asarray(np.arange(16) < (degree + 1) ** 2, dtype)
+
+
+@partial(jax.jit, static_argnames=("width", "height", "tile", "near"))
+def _render(params, frames, parent, keep, sh_mask, cam, background, gauss, tiles, first, probe, *,
+            width, height, tile, near):
+    """Colour, alpha of the current model; ``keep`` (N,) scales opacities, ``probe`` (N, 3) adds to colours."""
+    means, rot, scales, opac = apply_frames(*frames, parent, params["means"], params["quats"],
+                                            params["log_scales"], params["opacity_logits"])
+    sh = params["sh"] * sh_mask[None, : params["sh"].shape[1], None]
+    color, alpha, _ = render_bound(means, rot, scales, opac * keep, sh, cam, background, gauss, tiles, first,
+                                   width=width, height=height, tile=tile, sh_degree=3, near=near, color_offset=probe)
+    return color, alpha
+
+
+@jax.jit
+def _world(params, frames, parent, keep):
+    """World means, axes, scales and (``keep``-scaled) opacities of the current model."""
+    means, rot, scales, opac = apply_frames(*frames, parent, params["means"], params["quats"],
+                                            params["log_scales"], params["opacity_logits"])
+    return means, rot, scales, opac * keep
+
+
+@partial(jax.jit, static_argnames=("width", "height", "tile", "near"))
+def _contributions(params, frames, parent, sh_mask, cam, background, gauss, tiles, first, *, width, height, tile,
+                   near):
+    """(N,) each Gaussian's summed compositing weight over the pixels of one view (d colour_r / d offset_r)."""
+    n = params["means"].shape[0]
+    ones = jnp.ones((n,), background.dtype)
+
+    def red(probe):
+        return _render(params, frames, parent, ones, sh_mask, cam, background, gauss, tiles, first, probe,
+                       width=width, height=height, tile=tile, near=near)[0][..., 0].sum()
+
+    return jax.grad(red)(jnp.zeros((n, 3), background.dtype))[:, 0]
+
+
+@partial(jax.jit, static_argnames=("width", "height", "tile", "near", "lambda_l1", "lambda_mask"))
+def _train_step(params, adam, step, lrs, frames, parent, sh_mask, cam, background, target, mask, band, gauss, tiles,
+                first, *, width, height, tile, near, lambda_l1, lambda_mask):
+    """One Adam step on one view; returns new params, Adam state, loss and the sRGB prediction."""
+    n = params["means"].shape[0]
+    ones, zero = jnp.ones((n,), target.dtype), jnp.zeros((n, 3), target.dtype)
+
+    def loss_fn(p):
+        color, alpha = _render(p, frames, parent, ones, sh_mask, cam, background, gauss, tiles, first, zero,
+                               width=width, height=height, tile=tile, near=near)
+        pred = linear_to_srgb(color)
+        loss = lambda_l1 * jnp.mean(jnp.abs(pred - target)) + (1.0 - lambda_l1) * (1.0 - ssim(pred, target))
+        return loss + lambda_mask * jnp.mean(band * jnp.abs(mask - alpha)), pred
+
+    (loss, pred), grads = jax.value_and_grad(loss_fn, has_aux=True)(params)
+    t = step + 1
+    new_p, new_m, new_v = {}, {}, {}
+    for name in params:
+        g = grads[name]
+        m = ADAM_B1 * adam["m"][name] + (1 - ADAM_B1) * g
+        v = ADAM_B2 * adam["v"][name] + (1 - ADAM_B2) * g * g
+        mhat, vhat = m / (1 - ADAM_B1 ** t), v / (1 - ADAM_B2 ** t)
+        new_p[name] = params[name] - lrs[name] * mhat / (jnp.sqrt(vhat) + ADAM_EPS)
+        new_m[name], new_v[name] = m, v
+    return new_p, {"m": new_m, "v": new_v}, loss, pred
+
+
+class _Model:
+    """Trainable local parameters, the fixed face frames, and chunk tables padded to a growing capacity."""
+
+    def __init__(self, renderer, g: GaussianSet, mesh: Mesh) -> None:
+        o = renderer.options
+        self.dtype, self.tile, self.chunk, self.near = renderer.dtype, o.tile_size, o.chunk_size, o.near
+        # fixed vertices: the frames come from the float64 numpy binding (exact degenerate-face rules)
+        self.frames = tuple(jnp.asarray(x, self.dtype) for x in np_triangle_frames(mesh.vertices, mesh.faces))
+        self.parent = jnp.asarray(g.parent)
+        self.params = {n: jnp.asarray(getattr(g, n), self.dtype) for n in NAMES}
+        self.capacity: dict[tuple[int, int], int] = {}
+        self.compiles = 0
+
+    def bins(self, view: _View, keep: jnp.ndarray | None = None) -> Bins:
+        keep = jnp.ones(len(self.parent), self.dtype) if keep is None else keep
+        means, rot, scales, opac = _world(self.params, self.frames, self.parent, keep)
+        size = (view.camera.width, view.camera.height)
+        cap = self.capacity.get(size, 0)
+        b = make_bins(means, rot, scales, opac, view.camera, view.cam, tile=self.tile, chunk=self.chunk,
+                      near=self.near, capacity=cap)
+        if b.n_chunks > cap:  # grow with head room: each new capacity is one more compilation
+            self.capacity[size] = bucket(int(1.25 * b.n_chunks) + 1)
+            self.compiles += 1
+            return self.bins(view, keep)
+        return b
+
+    def kw(self, view: _View) -> dict[str, Any]:
+        return dict(width=view.camera.width, height=view.camera.height, tile=self.tile, near=self.near)
+
+    def render(self, view: _View, degree: int, keep: jnp.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        b = self.bins(view, keep)
+        n = len(self.parent)
+        color, alpha = _render(self.params, self.frames, self.parent, keep, _sh_mask(degree, self.dtype), view.cam,
+                               view.background, b.gauss, b.tile, b.first, jnp.zeros((n, 3), self.dtype),
+                               **self.kw(view))
+        return np.asarray(color), np.asarray(alpha)
+
+    def contributions(self, views: list[_View], degree: int) -> np.ndarray:
+        """(N,) sum over ``views`` and pixels of each Gaussian's compositing weight ``T_i alpha_i``."""
+        total = np.zeros(len(self.parent))
+        for v in views:
+            b = self.bins(v)
+            total += np.asarray(_contributions(self.params, self.frames, self.parent, _sh_mask(degree, self.dtype),
+                                               v.cam, v.background, b.gauss, b.tile, b.first, **self.kw(v)))
+        return total
+
+    def gaussians(self, keep: np.ndarray | None = None, sh_degree: int | None = None) -> GaussianSet:
+        arrays = {n: np.asarray(t, np.float32) for n, t in self.params.items()}
+        if sh_degree is not None:
+            arrays["sh"] = arrays["sh"][:, :(sh_degree + 1) ** 2]
+        g = GaussianSet(parent=np.asarray(self.parent), **arrays)
+        return g if keep is None else g.select(keep)
+
+
+def heldout_psnr(model: _Model, views: list[_View], degree: int, keep: np.ndarray | None = None) -> float:
+    """Mean PSNR (dB, sRGB) of renders over the background against the images of ``views``."""
+    if not views:
+        return float("nan")
+    k = jnp.ones(len(model.parent), model.dtype) if keep is None else jnp.asarray(keep, model.dtype)
+    return float(np.mean([psnr(model.render(v, degree, k)[0], v.image) for v in views]))
+
+
+def _save_checkpoint(path: Path, model: _Model, adam: dict, meta: dict[str, Any]) -> None:
+    arrays = {f"p_{n}": np.asarray(t) for n, t in model.params.items()}
+    arrays |= {f"m_{n}": np.asarray(t) for n, t in adam["m"].items()}
+    arrays |= {f"v_{n}": np.asarray(t) for n, t in adam["v"].items()}
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:
+            np.savez(f, meta=np.frombuffer(json.dumps(meta).encode(), np.uint8), **arrays)
+
+
+def _load_checkpoint(path: Path, fingerprint: str) -> tuple[dict, dict, dict] | None:
+    if not path.exists():
+        return None
+    with np.load(path, allow_pickle=False) as z:
+        meta = json.loads(z["meta"].tobytes().decode())
+        if meta.get("fingerprint") != fingerprint:
+            return None
+        params = {n: z[f"p_{n}"] for n in NAMES}
+        adam = {"m": {n: z[f"m_{n}"] for n in NAMES}, "v": {n: z[f"v_{n}"] for n in NAMES}}
+    return params, adam, meta
+
+
+def fit_splats(renderer, capture: Capture, mesh: Mesh, settings: FitSplatsSettings | dict | None = None,
+               reporter: Reporter | None = None) -> SplatFit:
+    """Fit mesh-embedded Gaussians on ``mesh`` (the full body mesh) to ``capture``; see the module docstring."""
+    s = settings if isinstance(settings, FitSplatsSettings) else FitSplatsSettings.model_validate(settings or {})
+    reporter = reporter or Reporter.silent()
+    if s.keep == "garment" and mesh.face_labels is None:
+        raise PGCDataError(f"fit_splats: mesh '{mesh.name}' has no face_labels, so the garment's Gaussians cannot "
+                           "be selected; label the faces or set stages.fit_splats.keep = 'all'")
+    dtype = renderer.dtype
+    views = _prepare(capture, s.mask_band, dtype)
+    train_idx, held_idx = plan.heldout_split(len(views), s.holdout_every)
+    train, held = [views[i] for i in train_idx], [views[i] for i in held_idx]
+    rng = np.random.default_rng(s.seed)
+    count = plan.initial_count(capture, s)
+    model = _Model(renderer, sample_on_mesh(mesh, count, rng, s.max_sh_degree), mesh)
+    adam = {"m": {n: jnp.zeros_like(t) for n, t in model.params.items()},
+            "v": {n: jnp.zeros_like(t) for n, t in model.params.items()}}
+
+    ckpt = Path(s.checkpoint_dir) / "fit_splats_jax.npz" if s.checkpoint_dir else None
+    fp = plan.fingerprint(capture, mesh, s, "jax")
+    step, total, elapsed, curve, order = 0, s.iterations or None, 0.0, [], []
+    loaded = _load_checkpoint(ckpt, fp) if ckpt is not None else None
+    if loaded is not None:
+        params, state, meta = loaded
+        model.params = {n: jnp.asarray(a, dtype) for n, a in params.items()}
+        adam = {k: {n: jnp.asarray(a, dtype) for n, a in d.items()} for k, d in state.items()}
+        step, total, elapsed, curve, order = meta["step"], meta["total"], meta["elapsed"], meta["curve"], meta["order"]
+        rng.bit_generator.state = meta["rng"]
+
+    lambdas = dict(lambda_l1=float(s.lambda_l1), lambda_mask=float(s.lambda_mask))
+    start = time.perf_counter() - elapsed
+    calib_from = None
+    with reporter.stage("fit_splats", total=total, gaussians=count, views=len(train), heldout=len(held)) as st:
+        while total is None or step < total:
+            if not order:
+                order = [int(i) for i in rng.permutation(len(train))]
+            view = train[order.pop()]
+            degree = plan.sh_degree_at(step, total, s)
+            lrs = {n: float(s.lr_other) for n in NAMES}
+            lrs["means"] = plan.position_lr_at(step, total, s)
+            b = model.bins(view)
+            model.params, adam, loss, pred = _train_step(
+                model.params, adam, float(step), lrs, model.frames, model.parent, _sh_mask(degree, dtype),
+                view.cam, view.background, view.target, view.mask, view.band, b.gauss, b.tile, b.first,
+                **model.kw(view), **lambdas)
+            step += 1
+            if total is None:
+                loss.block_until_ready()
+                if calib_from is None:        # the first step compiles: calibrate on the following ones
+                    calib_from = (step, time.perf_counter())
+                elif step - calib_from[0] == CALIBRATION_STEPS:
+                    now = time.perf_counter()
+                    per_step = (now - calib_from[1]) / CALIBRATION_STEPS
+                    left = s.time_budget_s - (now - start)
+                    total = int(np.clip(step + left / per_step, step, s.max_iterations))
+                    st.progress(step, total)
+            if step % s.log_every == 0 or step == total:
+                train_psnr = -10.0 * math.log10(max(float(jnp.mean((pred - view.target) ** 2)), 1e-20))
+                figures = {"loss": float(loss), "psnr_train_view": train_psnr,
+                           "sh_degree": plan.sh_degree_at(step, total, s)}
+                if step % (s.log_every * 8) == 0 or step == total:
+                    figures["psnr_heldout"] = heldout_psnr(model, held, figures["sh_degree"])
+                    curve.append({"seconds": time.perf_counter() - start, "iteration": step,
+                                  "psnr_heldout": figures["psnr_heldout"]})
+                st.progress(step, total, **figures)
+            if ckpt is not None and (step % s.checkpoint_every == 0 or step == total):
+                _save_checkpoint(ckpt, model, adam, {
+                    "fingerprint": fp, "step": step, "total": total, "curve": curve, "order": order,
+                    "elapsed": time.perf_counter() - start, "rng": rng.bit_generator.state})
+        fit_seconds = time.perf_counter() - start
+        final_degree = plan.sh_degree_at(step, total, s)
+        figures: dict[str, Any] = {"iterations": step, "initial_gaussians": count, "fit_seconds": fit_seconds,
+                                   "time_to_psnr": curve, "views_train": len(train), "views_heldout": len(held),
+                                   "chunk_capacity_changes": model.compiles}
+        keep, degree = _model_selection(model, mesh, train, held, final_degree, s, capture.garment_label_ids, figures)
+        figures["selection_seconds"] = time.perf_counter() - start - fit_seconds
+        st.record(**{k: v for k, v in figures.items() if k != "time_to_psnr"})
+    return SplatFit(gaussians=model.gaussians(keep, degree), figures=figures)
+
+
+def _model_selection(model: _Model, mesh: Mesh, train: list[_View], held: list[_View], degree: int,
+                     s: FitSplatsSettings, garment_ids: list[int], figures: dict[str, Any]) -> tuple[np.ndarray, int]:
+    """Prune, choose the count and SH degree on held-out views, drop back-facing and non-garment Gaussians."""
+    contrib = model.contributions(train, degree)
+    keep = contrib >= s.prune_weight
+    figures["pruned_no_contribution"] = int((~keep).sum())
+    base = heldout_psnr(model, held, degree, keep)
+    figures["psnr_heldout_full"] = base
+    if s.select_count and held:
+        ranked = np.argsort(-contrib)
+        tried = {}
+        for frac in COUNT_FRACTIONS:
+            subset = np.zeros_like(keep)
+            subset[ranked[:int(round(frac * keep.sum()))]] = True
+            tried[frac] = heldout_psnr(model, held, degree, subset)
+            if tried[frac] >= base - s.margin_db:
+                keep = subset
+                break
+        figures["count_selection"] = {str(k): v for k, v in tried.items()}
+    if s.select_sh and held:
+        by_degree = {d: heldout_psnr(model, held, d, keep) for d in range(degree + 1)}
+        best = max(by_degree.values())
+        degree = min(d for d, v in by_degree.items() if v >= best - s.margin_db)
+        figures["sh_selection"] = {str(k): v for k, v in by_degree.items()}
+    figures["sh_degree"] = degree
+    figures["psnr_heldout"] = heldout_psnr(model, held, degree, keep)
+    parent = np.asarray(model.parent)
+    if s.drop_backfacing:
+        back = plan.backfacing_faces(mesh, [v.camera for v in train])[parent]
+        figures["dropped_backfacing"] = int((keep & back).sum())
+        keep &= ~back
+    figures["gaussians_selected"] = int(keep.sum())
+    if s.keep == "garment":
+        keep &= np.isin(mesh.face_labels, garment_ids)[parent]
+    figures["gaussians"] = int(keep.sum())
+    return keep, degree

@@ -1,0 +1,69 @@
+"""The ``jax`` splat_renderer: rendering contract of :mod:`pgc.roles.splat_renderer` on JAX/XLA."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from pgc.errors import PGCConfigError, PGCDataError
+from pgc.events import Reporter
+from pgc.roles.splat_renderer import RenderOutput, SplatFit, SplatRenderer
+from pgc.splats.reference import background_image
+from pgc.types import Camera, Capture, Mesh, WorldGaussians
+from pgc_jax.specs_splat import JaxSplatOptions
+
+
+def _float_dtype(precision: str) -> Any:
+    """JAX dtype of ``precision``; float64 needs JAX's x64 mode switched on before arrays exist."""
+    import jax
+    import jax.numpy as jnp
+
+    if precision == "float64":
+        if not jax.config.read("jax_enable_x64"):
+            raise PGCConfigError("splat_renderer 'jax': precision = 'float64' needs JAX's x64 mode; set the "
+                                 "environment variable JAX_ENABLE_X64=1 or use precision = 'float32'")
+        return jnp.float64
+    return jnp.float32
+
+
+class JaxSplatRenderer(SplatRenderer):
+    """3DGS rasteriser and mesh-embedded splat fit in JAX (see ``docs/splats_jax.md``)."""
+
+    Options = JaxSplatOptions
+
+    def __init__(self, options: JaxSplatOptions | dict[str, Any] | None = None) -> None:
+        super().__init__(options)
+        self.dtype = _float_dtype(self.options.precision)
+
+    def render(self, gaussians: WorldGaussians, camera: Camera, background: np.ndarray | None = None,
+               sh_degree: int | None = None) -> RenderOutput:
+        import jax
+        import jax.numpy as jnp
+
+        from pgc_jax.splat.binning import bucket
+        from pgc_jax.splat.render import render_view, rotmats_of
+
+        n = len(gaussians.means)
+        sh = np.asarray(gaussians.sh)
+        if sh.ndim != 3 or sh.shape[0] != n or sh.shape[2] != 3:
+            raise PGCDataError(f"WorldGaussians.sh must have shape (N, K, 3) with N={n}, got {sh.shape}")
+        degree = int(round(np.sqrt(sh.shape[1]))) - 1 if sh_degree is None else int(sh_degree)
+        bg = background_image(background, camera.height, camera.width)
+        m = bucket(n)  # padded with transparent Gaussians: fewer recompilations for varying N
+        pad = lambda x, fill=0.0: np.concatenate(  # noqa: E731
+            [np.asarray(x, np.float64), np.full((m - n,) + np.shape(x)[1:], fill)], axis=0)
+        dt = self.dtype
+        means, quats, scales = (jnp.asarray(pad(x), dt) for x in (gaussians.means, gaussians.quats, gaussians.scales))
+        opac, shs = jnp.asarray(pad(gaussians.opacities), dt), jnp.asarray(pad(sh), dt)
+        o = self.options
+        depth64 = pad(gaussians.means) @ camera.R[2] + camera.t[2]  # float64 sort keys, as the reference's
+        color, alpha, depth = jax.device_get(render_view(
+            means, rotmats_of(quats), scales, opac, shs, camera, jnp.asarray(bg, dt), sh_degree=degree,
+            tile=o.tile_size, chunk=o.chunk_size, near=o.near, sort_depth=depth64))
+        return RenderOutput(color=np.asarray(color, np.float32), alpha=np.asarray(alpha, np.float32),
+                            depth=np.asarray(depth, np.float32))
+
+    def fit(self, capture: Capture, mesh: Mesh, settings: Any = None, reporter: Reporter | None = None) -> SplatFit:
+        from pgc_jax.splat.fit import fit_splats
+        return fit_splats(self, capture, mesh, settings, reporter or Reporter.silent())

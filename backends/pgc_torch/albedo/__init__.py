@@ -1,0 +1,1 @@
+"""The small intrinsic-decomposition network that PGC trains on its synthetic renders and ships as ONNX."""

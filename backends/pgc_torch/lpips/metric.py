@@ -1,0 +1,35 @@
+"""The ``metric`` role 'lpips': numpy linear RGB in, the LPIPS distance out (lower is better)."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from pgc.io.images import linear_to_srgb
+from pgc.metrics.common import mask_bbox
+from pgc.metrics.weights import lpips_weights_path
+from pgc.roles.metric import Metric
+from pgc_torch.lpips.network import MIN_SIZE, LPIPSNetwork
+from pgc_torch.specs_lpips import LPIPSOptions
+
+
+@lru_cache(maxsize=2)
+def load_network(net: str) -> LPIPSNetwork:
+    """The LPIPS network of backbone ``net`` with its converted weights (loaded once per process)."""
+    return LPIPSNetwork(net, lpips_weights_path(net))
+
+
+class LPIPSMetric(Metric):
+    """LPIPS v0.1 on sRGB-encoded values. With a mask: the images are cropped to the mask's bounding box (grown
+    to the backbone's minimum size) and each layer's distance map is averaged with the mask as weights."""
+
+    Options = LPIPSOptions
+    higher_is_better = False
+
+    def compute(self, pred: np.ndarray, target: np.ndarray, mask: np.ndarray | None) -> float:
+        network = load_network(self.options.net)
+        if mask is not None:
+            rows, cols = mask_bbox(mask, MIN_SIZE[self.options.net])
+            pred, target, mask = pred[rows, cols], target[rows, cols], np.asarray(mask)[rows, cols]
+        return network.distance(linear_to_srgb(pred), linear_to_srgb(target), mask)

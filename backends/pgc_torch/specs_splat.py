@@ -1,0 +1,25 @@
+"""Registration of the torch splat renderer (light: pgc core and pydantic only)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field
+
+from pgc.options import Options
+from pgc.registry import ImplementationSpec
+
+
+class TorchSplatOptions(Options):
+    compositor: Literal["auto", "cpp", "torch"] = Field(
+        "auto", description="compositing path: 'cpp' (compiled OpenMP kernel, built once and cached), "
+                            "'torch' (vectorised pure torch, slow; cross-check), 'auto' (cpp if it builds)")
+    tile_size: int = Field(16, ge=4, le=64, description="tile edge in pixels for binning")
+    threads: int = Field(0, ge=0, description="kernel threads; 0 = all CPU cores")
+    near: float = Field(0.01, gt=0.0, description="near plane (metres): Gaussians with camera z below are culled")
+
+
+SPECS = [ImplementationSpec(
+    role="splat_renderer", name="torch", factory="pgc_torch.splat.renderer:TorchSplatRenderer",
+    description="EWA Gaussian splatting in torch with a compiled OpenMP compositing kernel; mesh-embedded fit",
+    options="pgc_torch.specs_splat:TorchSplatOptions", requires=("torch",), extra="torch")]

@@ -1,0 +1,74 @@
+"""The ``splat_renderer`` implementation 'torch'."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from typing import Iterator
+
+import numpy as np
+import torch
+
+from pgc.events import Reporter
+from pgc.roles.splat_renderer import RenderOutput, SplatFit, SplatRenderer
+from pgc.types import Camera, Capture, Mesh, WorldGaussians
+
+from pgc_torch.specs_splat import TorchSplatOptions
+
+from . import kernel
+from .binding import quat_to_rotmat
+from .rasterizer import rasterize
+
+
+@contextlib.contextmanager
+def single_threaded_torch() -> Iterator[None]:
+    """Run torch ops on one thread meanwhile: the per-Gaussian tensors are small and intra-op threading costs
+    more than it gains (much more on a busy machine); the compositing kernel keeps its own OpenMP threads."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(threads)
+
+
+class TorchSplatRenderer(SplatRenderer):
+    """EWA splatting in torch with a compiled OpenMP compositing kernel (pure-torch fallback)."""
+
+    Options = TorchSplatOptions
+
+    @property
+    def compositor(self) -> str:
+        """'cpp' or 'torch': the compositing path this instance uses."""
+        choice = self.options.compositor
+        if choice == "auto":
+            return "cpp" if kernel.available() else "torch"
+        if choice == "cpp":
+            kernel.load()  # raises KernelUnavailable with the reason
+        return choice
+
+    @property
+    def threads(self) -> int:
+        return self.options.threads or os.cpu_count() or 1
+
+    def rasterize(self, means: torch.Tensor, rotmats: torch.Tensor, scales: torch.Tensor, opacities: torch.Tensor,
+                  sh: torch.Tensor, camera: Camera, background=None, sh_degree: int | None = None):
+        """Differentiable render of torch world Gaussians: (colour (H, W, 3), alpha (H, W), depth (H, W))."""
+        return rasterize(means, rotmats, scales, opacities, sh, camera, background, sh_degree, self.options.near,
+                         self.options.tile_size, self.compositor, self.threads)
+
+    def render(self, gaussians: WorldGaussians, camera: Camera, background: np.ndarray | None = None,
+               sh_degree: int | None = None) -> RenderOutput:
+        f32 = torch.float32
+        with torch.no_grad(), single_threaded_torch():
+            color, alpha, depth = self.rasterize(
+                torch.as_tensor(np.asarray(gaussians.means), dtype=f32),
+                quat_to_rotmat(torch.as_tensor(np.asarray(gaussians.quats), dtype=torch.float64)).to(f32),
+                torch.as_tensor(np.asarray(gaussians.scales), dtype=f32),
+                torch.as_tensor(np.asarray(gaussians.opacities), dtype=f32),
+                torch.as_tensor(np.asarray(gaussians.sh), dtype=f32), camera, background, sh_degree)
+        return RenderOutput(color=color.numpy(), alpha=alpha.numpy(), depth=depth.numpy())
+
+    def fit(self, capture: Capture, mesh: Mesh, settings=None, reporter: Reporter | None = None) -> SplatFit:
+        from .fit import fit_splats
+        return fit_splats(self, capture, mesh, settings, reporter)

@@ -1,0 +1,58 @@
+"""``xpbd-torch``: runs :func:`pgc.sim.kernels.advance_frame` eagerly on torch tensors (CPU)."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from pgc.sim.driver import Stepper, XPBDSimulator
+from pgc.sim.kernels import ArrayOps, FrameInput, Statics, StepSettings, advance_frame, python_loop
+from pgc.sim.model import ClothModel
+from pgc.sim.options import XPBDOptions
+
+TORCH = ArrayOps(torch, lambda a, idx, values: a.index_add(0, idx, values), python_loop)
+
+
+class TorchStepper(Stepper):
+    def __init__(self, model: ClothModel, settings: StepSettings, options: XPBDOptions) -> None:
+        super().__init__(model, settings, options)
+        self.dtype = torch.float64 if options.dtype == "float64" else torch.float32
+        free = (model.inv_mass > 0).astype(np.float64)
+        self.statics = Statics(self._t(model.inv_mass), self._t(free),
+                               tuple(tuple(self._t(a) for a in g) for g in self.groups),
+                               self._t(np.array(options.gravity)))
+
+    def _t(self, a: np.ndarray) -> torch.Tensor:
+        a = np.asarray(a)
+        if a.dtype.kind in "iu":
+            return torch.from_numpy(a.astype(np.int64))
+        if a.dtype == bool:
+            return torch.from_numpy(a.copy())
+        return torch.from_numpy(a.astype(np.float64)).to(self.dtype)
+
+    def set_state(self, x: np.ndarray, v: np.ndarray) -> None:
+        self.x, self.v = self._t(x), self._t(v)
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.x.double().numpy().copy(), self.v.double().numpy().copy()
+
+    @torch.inference_mode()
+    def advance(self, frame: FrameInput) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        inputs = FrameInput(*(self._t(a) for a in frame))
+        threads = torch.get_num_threads()
+        # the per-op work (a few thousand rows) is too small to split: one intra-op thread avoids the
+        # OpenMP barriers that cost 20x on a busy 2-core machine (measured); restored afterwards
+        torch.set_num_threads(1)
+        try:
+            self.x, self.v, res = advance_frame(TORCH, self.settings, self.statics, self.x, self.v, inputs)
+        finally:
+            torch.set_num_threads(threads)
+        return (self.x.double().numpy().copy(), self.in_model_order([g[0].double().numpy() for g in res]),
+                self.in_model_order([g[1].double().numpy() for g in res]))
+
+
+class TorchXPBDSimulator(XPBDSimulator):
+    """XPBD cloth in PyTorch (eager, vectorised over constraints and vertices)."""
+
+    def make_stepper(self, model: ClothModel, settings: StepSettings) -> Stepper:
+        return TorchStepper(model, settings, self.options)

@@ -1,0 +1,236 @@
+"""Simulator benchmark: speed against error for ``xpbd-torch`` and ``xpbd-jax``, with Newton as a peer.
+
+    python benchmarks/bench_simulator.py [--preset tiny|default] [--out DIR]
+
+Measures, on the synthetic body and t-shirt (pgc.synth):
+1. frames per second at the paper's settings (30 substeps, 20 iterations) per backend and garment size;
+2. speed against error: constraint residual, strain and penetration against iterations and substeps, for
+   both parallel updates (graph colouring vs Jacobi), from the same settled state on the same motion frames;
+3. the sag-free rest shape: sag (mean / max vertex displacement after settling) with and without it;
+4. Newton's SolverXPBD on the same drape (when warp + newton are installed): speed and the difference of
+   the resting shapes.
+Prints tables and writes JSON records (role, implementation, preset, settings, seconds, peak_mb, errors,
+versions). ``run(preset)`` returns the records (``pgc bench --role simulator`` calls it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import sys
+import time
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pgc.sim.collision import penetration_fraction
+from pgc.sim.driver import FrameRunner, XPBDSimulator, settle, step_settings
+from pgc.sim.model import STRETCH
+from pgc.sim.sagfree import sag
+from pgc.types import BodyMotion, Mesh
+
+PRESETS: dict[str, dict[str, Any]] = {
+    "tiny": {"sizes": {"0.7k": 0.04}, "frames": 3, "sweep_size": "0.7k", "iterations": [1, 2, 5, 10, 20],
+             "substeps": [5, 10, 30], "torch_iterations": [5, 20], "settle": 6, "sag_iterations": 3,
+             "newton_frames": 6, "backends": ["jax", "torch"]},
+    "default": {"sizes": {"5k": 0.0143, "15k": 0.0082}, "frames": 2, "sweep_size": "5k",
+                "iterations": [1, 5, 20, 40], "substeps": [10, 30], "torch_iterations": [20], "settle": 10,
+                "sag_iterations": 3, "newton_frames": 10, "backends": ["jax", "torch"]},
+}
+MOTION, MOTION_START = "goalpost", 8
+"""Timed frames come from this motion starting at this frame (the arms are moving there)."""
+
+
+def versions() -> dict[str, str]:
+    out = {"numpy": np.__version__}
+    for name in ("torch", "jax", "warp", "newton"):
+        try:
+            out[name] = __import__(name).__version__
+        except ImportError:
+            pass
+    return out
+
+
+def peak_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+@lru_cache(maxsize=None)
+def scene(resolution: float, looseness: float = 0.03) -> tuple[Mesh, BodyMotion]:
+    """The synthetic t-shirt (``resolution`` m edges, ``looseness`` m from the body) and the motion."""
+    from pgc.synth.body import make_body
+    from pgc.synth.garments import make_garment
+    from pgc.synth.motions import make_motion
+
+    body = make_body()
+    return make_garment(body, "tshirt", looseness=looseness, resolution=resolution), make_motion(body, MOTION)
+
+
+def simulator(backend: str, **options: Any) -> XPBDSimulator:
+    if backend == "torch":
+        from pgc_torch.xpbd.simulator import TorchXPBDSimulator
+
+        return TorchXPBDSimulator(options)
+    from pgc_jax.xpbd.simulator import JaxXPBDSimulator
+
+    return JaxXPBDSimulator(options)
+
+
+def errors(runner: FrameRunner, res: np.ndarray, c: np.ndarray, body: np.ndarray, faces: np.ndarray) -> dict:
+    m = runner.stepper.model
+    s = m.kind == STRETCH
+    return {"residual_rms": float(np.sqrt(np.mean(res**2))),
+            "max_strain": float(np.max(np.abs(c[s]) / np.maximum(m.rest[s], 1e-9))),
+            "p99_strain": float(np.percentile(np.abs(c[s]) / np.maximum(m.rest[s], 1e-9), 99)),
+            "penetration_fraction": penetration_fraction(runner.x, body, faces, runner.stepper.options.collision_offset)}
+
+
+def timed_frames(sim: XPBDSimulator, garment: Mesh, motion: BodyMotion, frames: int,
+                 start_state: np.ndarray | None = None) -> tuple[float, dict]:
+    """Seconds per frame over ``frames`` motion frames (after one warm-up frame), and the last frame's errors."""
+    model = sim.build_model(garment)
+    runner = FrameRunner(sim.make_stepper(model, step_settings(sim.options, motion.fps)), motion.faces)
+    if start_state is not None:
+        runner.x = start_state.copy()
+        runner.stepper.set_state(start_state, np.zeros_like(start_state))
+    body = motion.vertices.astype(np.float64)
+    runner.step(body[MOTION_START - 1], body[MOTION_START - 1])  # warm-up (JIT compile)
+    times = []
+    for k in range(MOTION_START, MOTION_START + frames):
+        t0 = time.perf_counter()
+        _, res, c = runner.step(body[k - 1], body[k])
+        times.append(time.perf_counter() - t0)
+    # the fastest frame: the machine is shared, slower frames measure the other users
+    return min(times), errors(runner, res, c, body[MOTION_START + frames - 1], motion.faces)
+
+
+def record(implementation: str, preset: str, settings: dict, seconds: float, errs: dict) -> dict:
+    return {"role": "simulator", "implementation": implementation, "preset": preset, "settings": settings,
+            "seconds": seconds, "peak_mb": peak_mb(), "errors": errs, "versions": versions()}
+
+
+def bench_fps(preset: str, cfg: dict) -> list[dict]:
+    out = []
+    for size, resolution in cfg["sizes"].items():
+        garment, motion = scene(resolution)
+        for backend in cfg["backends"]:
+            sim = simulator(backend)
+            seconds, errs = timed_frames(sim, garment, motion, cfg["frames"])
+            out.append(record(f"xpbd-{backend}", preset, {"study": "fps", "garment": f"tshirt-{size}",
+                                                           "vertices": len(garment.vertices), "substeps": 30,
+                                                           "iterations": 20, "solver": sim.options.solver},
+                                  seconds, errs))
+    return out
+
+
+def bench_convergence(preset: str, cfg: dict) -> list[dict]:
+    """Residual against iterations and substeps, both solvers, from one settled state (JAX backend)."""
+    garment, motion = scene(cfg["sizes"][cfg["sweep_size"]])
+    base = simulator("jax")
+    start = settle(base.make_stepper(base.build_model(garment), step_settings(base.options, motion.fps)),
+                   motion.vertices[0].astype(np.float64), motion.faces, cfg["settle"])
+    out = []
+    grid = [("jax", s, 30, it) for s in ("jacobi", "coloured") for it in cfg["iterations"]]
+    grid += [("jax", s, sub, 20) for s in ("jacobi", "coloured") for sub in cfg["substeps"] if sub != 30]
+    grid += [("torch", s, 30, it) for s in ("jacobi", "coloured") for it in cfg["torch_iterations"]]
+    for backend, solver, substeps, iterations in grid:
+        sim = simulator(backend, solver=solver, substeps=substeps, iterations=iterations)
+        seconds, errs = timed_frames(sim, garment, motion, cfg["frames"], start)
+        out.append(record(f"xpbd-{backend}", preset, {"study": "convergence", "garment": f"tshirt-{cfg['sweep_size']}",
+                                               "vertices": len(garment.vertices), "solver": solver,
+                                               "substeps": substeps, "iterations": iterations}, seconds, errs))
+    return out
+
+
+def bench_sag_free(preset: str, cfg: dict) -> list[dict]:
+    from pgc.sim.sagfree import solve_sag_free
+
+    garment, motion = scene(cfg["sizes"][cfg["sweep_size"]], looseness=0.01)  # close-fitting: body-supported
+    sim = simulator("jax")
+    settings = step_settings(sim.options, motion.fps)
+    body = motion.vertices[0].astype(np.float64)
+    t0 = time.perf_counter()
+    _, history = solve_sag_free(sim.build_model(garment),
+                                lambda m: settle(sim.make_stepper(m, settings), body, motion.faces, cfg["settle"]),
+                                cfg["sag_iterations"])
+    seconds = time.perf_counter() - t0
+    best = min(history, key=lambda h: h["sag_mean"])
+    errs = {"sag_mean_plain": history[0]["sag_mean"], "sag_max_plain": history[0]["sag_max"],
+            "sag_mean_sag_free": best["sag_mean"], "sag_max_sag_free": best["sag_max"]}
+    return [record("xpbd-jax", preset, {"study": "sag_free", "garment": f"tshirt-{cfg['sweep_size']}-fitted",
+                                        "settle_frames": cfg["settle"], "iterations": cfg["sag_iterations"],
+                                        "history": history}, seconds, errs)]
+
+
+def bench_newton(preset: str, cfg: dict) -> list[dict]:
+    sys.path.insert(0, str(Path(__file__).parent))
+    import newton_peer
+
+    if not newton_peer.available():
+        print("newton/warp not installed: skipping the Newton peer (pip install warp-lang==1.19.0 newton==1.8.0)")
+        return []
+    garment, motion = scene(cfg["sizes"][cfg["sweep_size"]])
+    body = motion.vertices[0].astype(np.float64)
+    sim = simulator("jax", bend_stiffness=0.0)  # Newton's XPBD cloth has no cross-edge bending springs
+    runner = FrameRunner(sim.make_stepper(sim.build_model(garment), step_settings(sim.options, motion.fps)),
+                         motion.faces)
+    runner.step(body, body)
+    t0 = time.perf_counter()
+    for _ in range(cfg["newton_frames"] - 1):
+        runner.step(body, body)
+    ours_s = (time.perf_counter() - t0) / (cfg["newton_frames"] - 1)
+    theirs, newton_s = newton_peer.newton_settle(garment, Mesh(body, motion.faces), cfg["newton_frames"], sim.options)
+    d = np.linalg.norm(runner.x - theirs, axis=1) if np.all(np.isfinite(theirs)) else np.array([np.inf])
+    settings = {"study": "newton_peer", "garment": f"tshirt-{cfg['sweep_size']}", "vertices": len(garment.vertices),
+                "frames": cfg["newton_frames"], "substeps": 30, "iterations": 20, "bend_stiffness": 0.0}
+    ours_sag, theirs_sag = sag(runner.x, garment.vertices), sag(theirs, garment.vertices)
+    common = {"shape_difference_mean": float(d.mean()), "shape_difference_max": float(d.max())}
+    return [record("xpbd-jax", preset, settings, ours_s, {**common, "sag_mean": ours_sag[0], "sag_max": ours_sag[1]}),
+            record("newton-xpbd", preset, settings, newton_s,
+                   {**common, "sag_mean": theirs_sag[0], "sag_max": theirs_sag[1]})]
+
+
+def table(records: list[dict]) -> str:
+    lines = [f"{'implementation':<13} {'study':<12} {'garment':<11} {'solver':<9} {'sub':>4} {'it':>4} "
+             f"{'s/frame':>8} {'fps':>7}  errors"]
+    for r in records:
+        s = r["settings"]
+        errs = ", ".join(f"{k}={v:.3g}" for k, v in r["errors"].items())
+        lines.append(f"{r['implementation']:<13} {s['study']:<12} {s.get('garment', ''):<11} "
+                     f"{s.get('solver', ''):<9} {s.get('substeps', ''):>4} {s.get('iterations', ''):>4} "
+                     f"{r['seconds']:8.3f} {1 / r['seconds'] if r['seconds'] > 0 else 0:7.2f}  {errs}")
+    return "\n".join(lines)
+
+
+def run(preset: str = "tiny", settings: dict | None = None, studies: tuple[str, ...] = ("fps", "convergence",
+        "sag_free", "newton")) -> list[dict]:
+    """All studies of ``preset`` ('tiny' or 'default'); ``settings`` overrides preset keys."""
+    cfg = {**PRESETS[preset], **(settings or {})}
+    fns = {"fps": bench_fps, "convergence": bench_convergence, "sag_free": bench_sag_free, "newton": bench_newton}
+    records = []
+    for name in studies:
+        new = fns[name](preset, cfg)
+        print(table(new), flush=True)
+        records += new
+    return records
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--preset", default="tiny", choices=sorted(PRESETS))
+    parser.add_argument("--out", default="benchmarks/results")
+    parser.add_argument("--studies", default="fps,convergence,sag_free,newton")
+    args = parser.parse_args()
+    records = run(args.preset, studies=tuple(args.studies.split(",")))
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / f"simulator_{args.preset}.json"
+    path.write_text(json.dumps(records, indent=1))
+    print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()

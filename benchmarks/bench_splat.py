@@ -1,0 +1,213 @@
+#!/usr/bin/env python
+"""Speed against error of the ``splat_renderer`` backends, and the time-to-PSNR curve of the splat fit.
+
+Forward and forward+backward seconds per view for every installed splat renderer (built through the
+registry) at each image size and Gaussian count, on Gaussians covering the surface of the test body
+(pgc.geometry.testscene) with a fitted-like density; ratios to the torch renderer of the same run. The float64
+per-pixel reference (pgc.splats.reference) runs only on a tiny scene (it loops over pixels in Python); there
+each backend's time is also a ratio to it and its error is the largest absolute difference to it. At the
+larger sizes the error is the largest difference to the torch image. ``--fit`` also fits splats on a capture
+(``--capture DIR``, e.g. the output of ``pgc synth OUT --preset default``, or the test body at 256 px) and
+records the held-out PSNR against time. Records (JSON) follow DESIGN.md's benchmark format.
+
+    python benchmarks/bench_splat.py [--sizes 128 256 512] [--counts 10000 50000 200000] [--fit] [--out FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+from bench_filter import PeakRSS, print_table, timed  # noqa: E402
+
+
+def surface_scene(count: int, size: int, seed: int = 0):
+    """World Gaussians on the test body (flat discs of the sampling spacing, opacity 0.8) and a dome camera."""
+    from pgc.geometry.testscene import body_mesh, dome_cameras
+    from pgc.splats.binding import bind
+    from pgc.splats.init import sample_on_mesh
+
+    mesh = body_mesh(0.03)
+    g = sample_on_mesh(mesh, count, np.random.default_rng(seed), sh_degree=3)
+    g.sh[:, 1:] = np.random.default_rng(seed + 1).normal(0, 0.05, g.sh[:, 1:].shape)
+    world = bind(g, mesh.vertices, mesh.faces)
+    spacing = np.sqrt(mesh.face_areas().sum() / count)
+    world.scales = np.tile([spacing, spacing * 0.2, spacing], (count, 1))
+    world.opacities = np.full(count, 0.8)
+    return world, dome_cameras(4, size)[1]
+
+
+def tiny_scene(count: int = 300, size: int = 32, seed: int = 0):
+    from pgc.types import Camera, WorldGaussians
+
+    rng = np.random.default_rng(seed)
+    means = np.c_[rng.uniform(-0.35, 0.35, count), rng.uniform(-0.35, 0.35, count), rng.uniform(0.8, 1.6, count)]
+    world = WorldGaussians(means, rng.normal(size=(count, 4)), rng.uniform(0.005, 0.05, (count, 3)),
+                           rng.uniform(0.1, 1.0, count), rng.normal(0, 0.3, (count, 16, 3)))
+    return world, Camera(np.array([[size, 0, size / 2], [0, size, size / 2], [0, 0, 1]]), np.eye(3), np.zeros(3),
+                         size, size)
+
+
+def torch_backward(renderer, world, camera):
+    """Forward+backward of the torch renderer (sum of colour and alpha) w.r.t. every world parameter."""
+    import torch
+
+    from pgc_torch.splat.binding import quat_to_rotmat
+    from pgc_torch.splat.renderer import single_threaded_torch
+
+    @single_threaded_torch()
+    def run() -> None:
+        p = [torch.tensor(np.asarray(x), dtype=torch.float32, requires_grad=True)
+             for x in (world.means, world.quats, world.scales, world.opacities, world.sh)]
+        color, alpha, _ = renderer.rasterize(p[0], quat_to_rotmat(p[1]), p[2], p[3], p[4], camera)
+        (color.sum() + alpha.sum()).backward()
+    return run
+
+
+def jax_backward(renderer, world, camera):
+    """Forward+backward of the JAX renderer: its bins built once, then the gradient of its render function."""
+    import jax
+    import jax.numpy as jnp
+
+    from pgc_jax.splat.project import quat_to_rotmat
+    from pgc_jax.splat.render import camera_arrays, make_bins, render_bound
+
+    o = renderer.options
+    means, quats, scales, opac, sh = [jnp.asarray(np.asarray(x), jnp.float32) for x in
+                                      (world.means, world.quats, world.scales, world.opacities, world.sh)]
+    cam = camera_arrays(camera, jnp.float32)
+    bg = jnp.zeros((camera.height, camera.width, 3), jnp.float32)
+
+    def run() -> None:
+        bins = make_bins(means, quat_to_rotmat(quats), scales, opac, camera, cam, tile=o.tile_size,
+                         chunk=o.chunk_size, near=o.near)
+
+        def loss(m, q, s, a, c):
+            color, alpha, _ = render_bound(m, quat_to_rotmat(q), s, a, c, cam, bg, bins.gauss, bins.tile, bins.first,
+                                           width=camera.width, height=camera.height, tile=o.tile_size, sh_degree=3,
+                                           near=o.near)
+            return color.sum() + alpha.sum()
+
+        jax.block_until_ready(jax.grad(loss, argnums=(0, 1, 2, 3, 4))(means, quats, scales, opac, sh))
+    return run
+
+
+BACKWARD = {"torch": torch_backward, "jax": jax_backward}
+
+
+def renderer_benchmarks(args, reg, env) -> list[dict[str, Any]]:
+    from pgc.splats.reference import render_reference
+
+    known = {i.name: i for i in reg.list("splat_renderer")}
+    renderers = {n: known[n].create() for n in args.backends if n in known and known[n].available}
+    records, rows = [], []
+    scenes = [("tiny", *tiny_scene())] + [(f"{s}px/{n // 1000}k", *surface_scene(n, s))
+                                           for s in args.sizes for n in args.counts]
+    for label, world, camera in scenes:
+        reference = None
+        if label == "tiny":
+            start = time.perf_counter()
+            reference = render_reference(world, camera)
+            ref_s = time.perf_counter() - start
+        base: dict[str, float] = {}
+        images = {}
+        for name, r in renderers.items():
+            fwd, peak = timed(lambda: r.render(world, camera), args.repeats)
+            images[name] = r.render(world, camera).color
+            try:
+                bwd, peak_b = timed(BACKWARD[name](r, world, camera), args.repeats)
+            except Exception as exc:  # a backend without a differentiable entry point here: report, go on
+                bwd, peak_b = float("nan"), float("nan")
+                print(f"  {name}: forward+backward not measured ({type(exc).__name__}: {exc})", file=sys.stderr)
+            base.setdefault("fwd", fwd)
+            base.setdefault("bwd", bwd)
+            errors = {"fwd_ratio_to_first": fwd / base["fwd"], "fwdbwd_ratio_to_first": bwd / base["bwd"]}
+            if reference is not None:
+                errors |= {"max_abs_vs_reference": float(np.abs(images[name] - reference.color).max()),
+                           "reference_seconds": ref_s, "speedup_vs_reference": ref_s / fwd}
+            else:
+                first = next(iter(images.values()))
+                errors["max_abs_vs_first"] = float(np.abs(images[name] - first).max())
+            records.append({"role": "splat_renderer", "implementation": name, "preset": label,
+                            "settings": {"size": camera.width, "gaussians": len(world.means)}, "seconds": fwd,
+                            "seconds_forward_backward": bwd, "peak_mb": round(max(peak, peak_b), 1),
+                            "errors": errors, "versions": env})
+            rows.append({"scene": label, "backend": name, "fwd ms": f"{1e3 * fwd:.0f}", "fwd+bwd ms": f"{1e3 * bwd:.0f}",
+                         "fwd / first": f"{errors['fwd_ratio_to_first']:.2f}",
+                         "fwd+bwd / first": f"{errors['fwdbwd_ratio_to_first']:.2f}",
+                         "x reference": f"{errors['speedup_vs_reference']:.0f}" if reference is not None else "",
+                         "max err": f"{errors.get('max_abs_vs_reference', errors.get('max_abs_vs_first')):.1e}",
+                         "peak MB": f"{max(peak, peak_b):.0f}"})
+    print_table(rows, ["scene", "backend", "fwd ms", "fwd+bwd ms", "fwd / first", "fwd+bwd / first", "x reference",
+                       "max err", "peak MB"])
+    return records
+
+
+def fit_benchmark(args, reg, env) -> list[dict[str, Any]]:
+    if args.capture:
+        from pgc.io.capture import read_capture
+        from pgc.io.mesh import read_mesh
+
+        capture = read_capture(args.capture)
+        mesh = read_mesh(Path(args.capture) / args.mesh)
+    else:
+        from pgc.geometry.testscene import body_mesh, make_capture
+
+        capture, mesh = make_capture(body_mesh(0.02), views=32, size=256)
+    records = []
+    for name in args.fit_backends:
+        renderer = reg.create("splat_renderer", name)
+        start, cpu = time.perf_counter(), time.process_time()
+        with PeakRSS() as mem:
+            fit = renderer.fit(capture, mesh, {"time_budget_s": args.fit_budget, "keep": "all"})
+        seconds = time.perf_counter() - start
+        f = fit.figures
+        records.append({"role": "splat_renderer", "implementation": name, "preset": args.capture or "testscene-256",
+                        "settings": {"stage": "fit_splats", "time_budget_s": args.fit_budget}, "seconds": seconds,
+                        "cpu_seconds": time.process_time() - cpu, "peak_mb": round(mem.mb, 1),
+                        "errors": {"psnr_heldout": f.get("psnr_heldout"), "time_to_psnr": f.get("time_to_psnr"),
+                                   "iterations": f.get("iterations"), "gaussians": f.get("gaussians")},
+                        "versions": env})
+        print(f"fit {name}: {seconds:.0f} s wall, held-out PSNR {f.get('psnr_heldout'):.2f} dB, "
+              f"{f.get('iterations')} steps, {f.get('gaussians')} Gaussians")
+        for point in f.get("time_to_psnr", []):
+            print(f"  {point['seconds']:7.1f} s  step {point['iteration']:5d}  {point['psnr_heldout']:.2f} dB")
+    return records
+
+
+def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=int, nargs="+", default=[128, 256, 512])
+    parser.add_argument("--counts", type=int, nargs="+", default=[10000, 50000, 200000])
+    parser.add_argument("--backends", nargs="+", default=["torch", "jax"])
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--fit", action="store_true", help="also measure the fit's time-to-PSNR curve")
+    parser.add_argument("--fit-backends", nargs="+", default=["torch"])
+    parser.add_argument("--fit-budget", type=float, default=420.0)
+    parser.add_argument("--capture", help="capture directory (default: the test body at 256 px, 32 views)")
+    parser.add_argument("--mesh", default="gt/body_garment.obj", help="mesh path inside --capture")
+    parser.add_argument("--out", default="bench_splat.json")
+    args = parser.parse_args(argv)
+
+    from pgc.io.asset import package_versions
+    from pgc.registry import default_registry
+
+    reg = default_registry()
+    env = package_versions(("pgc", "numpy", "torch", "jax", "jaxlib"))
+    records = renderer_benchmarks(args, reg, env)
+    if args.fit:
+        records += fit_benchmark(args, reg, env)
+    Path(args.out).write_text(json.dumps(records, indent=1, default=float) + "\n")
+    print(f"wrote {len(records)} records to {args.out}")
+    return records
+
+
+if __name__ == "__main__":
+    main()

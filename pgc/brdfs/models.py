@@ -1,0 +1,52 @@
+"""The ``brdf`` role implementations: thin classes over the shared maths of :mod:`pgc.brdfs.maths`."""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+from pgc.brdfs.maths import EVALUATORS
+from pgc.brdfs.parameters import PARAMETERS
+from pgc.brdfs.xp import namespace
+from pgc.errors import PGCDataError
+from pgc.roles.brdf import BRDF, BRDFParameter
+
+
+class ClothBRDF(BRDF):
+    """A built-in cloth BRDF; ``model`` names its formula in :data:`pgc.brdfs.maths.EVALUATORS`.
+
+    ``eval_cos(wi, wo, ...)``: ``wi`` toward the light, ``wo`` toward the viewer (local frame, z = normal),
+    unit vectors (..., 3); returns ``f(wi, wo) max(cos theta_i, 0)`` (..., 3). Missing parameters take
+    their initial values; unknown names are an error. ``backend``: "numpy", "torch", "jax" or "drjit".
+    """
+
+    model: ClassVar[str] = ""
+
+    def full_params(self, params: dict[str, Any] | None) -> dict[str, Any]:
+        """``params`` completed with initial values; unknown names raise :class:`PGCDataError`."""
+        params = dict(params or {})
+        names = {p.name for p in self.parameters}
+        unknown = sorted(set(params) - names - {"base_color"})
+        if unknown:
+            raise PGCDataError(f"brdf '{self.model}': unknown parameter(s) {unknown}; "
+                               f"its parameters are {sorted(names) or '(none)'}")
+        out = self.initial_params()
+        out.update({k: v for k, v in params.items() if k in names})
+        return out
+
+    def eval_cos(self, wi: Any, wo: Any, base_color: Any, params: dict[str, Any], backend: str = "numpy") -> Any:
+        return EVALUATORS[self.model](namespace(backend), wi, wo, base_color, self.full_params(params))
+
+
+class LambertianBRDF(ClothBRDF):
+    model = "lambertian"
+    parameters: ClassVar[tuple[BRDFParameter, ...]] = PARAMETERS["lambertian"]
+
+
+class DisneyBRDF(ClothBRDF):
+    model = "disney"
+    parameters: ClassVar[tuple[BRDFParameter, ...]] = PARAMETERS["disney"]
+
+
+class PGCSheenBRDF(ClothBRDF):
+    model = "pgc-sheen"
+    parameters: ClassVar[tuple[BRDFParameter, ...]] = PARAMETERS["pgc-sheen"]

@@ -1,0 +1,81 @@
+"""Oriented dense points of a capture: visual hull -> hull-guided plane-sweep depth maps -> points with
+normals (plus hull points where stereo found none). Shared by the open3d and colmap reconstructors."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pgc.events import Reporter
+from pgc.geometry.hull import SilhouetteField, _axis_centre, check_views, pixel_footprint, visual_hull
+from pgc.geometry.options import DenseOptions
+from pgc.geometry.raster import rasterize
+from pgc.geometry.stereo import depth_maps, depth_to_points
+from pgc.types import Capture
+
+
+@dataclass
+class DenseResult:
+    points: np.ndarray
+    """(N, 3) world points (metres)."""
+    normals: np.ndarray
+    """(N, 3) unit normals, outward."""
+    depths: list[np.ndarray]
+    """Filtered depth map per view (camera z, 0 where invalid)."""
+    field: SilhouetteField
+    footprint: float
+    """Median pixel footprint at the object (metres)."""
+    stereo_points: int
+    hull_points: int
+
+
+def dense_points(capture: Capture, options: DenseOptions, reporter: Reporter | None = None) -> DenseResult:
+    from scipy.spatial import cKDTree
+
+    reporter = reporter or Reporter.silent()
+    views = capture.views
+    masks = check_views(views, options.min_views)
+    with reporter.stage("mesh.visual_hull"):
+        field = SilhouetteField.from_masks([v.camera for v in views], masks)
+        hv, hf, field = visual_hull(views, field=field)
+    centre = _axis_centre(capture.cameras)
+    footprint = pixel_footprint(capture.cameras, hv.mean(0))
+    hull_depths = [rasterize(v.camera, hv, hf).depth for v in views]
+    depths = depth_maps(views, hull_depths, masks, centre, options.stereo(), reporter)
+    pts, nrm = [], []
+    for v, d in zip(views, depths):
+        p, n = depth_to_points(v.camera, d)
+        pts.append(p)
+        nrm.append(n)
+    points, normals = np.concatenate(pts), np.concatenate(nrm)
+    n_stereo = len(points)
+    n_hull = 0
+    if options.hull_fill:
+        from pgc.geometry.metrics import sample_surface
+        from pgc.types import Mesh
+
+        hull = Mesh(hv, hf)
+        count = int(hull.face_areas().sum() / footprint ** 2)
+        hp, hfid = sample_surface(hull, count, seed=0)
+        far = np.ones(len(hp), bool) if n_stereo == 0 else cKDTree(points).query(hp, workers=-1)[0] > 3 * footprint
+        points = np.concatenate([points, hp[far]])
+        normals = np.concatenate([normals, hull.face_normals()[hfid[far]]])
+        n_hull = int(far.sum())
+    return DenseResult(points, normals, depths, field, footprint, n_stereo, n_hull)
+
+
+def poisson_depth_for(points: np.ndarray, cell: float) -> int:
+    """Octree depth whose cell size (Open3D scales the bounding cube by 1.1) is at most ``cell``."""
+    extent = 1.1 * float(np.max(points.max(0) - points.min(0)))
+    return int(np.clip(np.ceil(np.log2(extent / cell)), 5, 11))
+
+
+def trim_outside(vertices: np.ndarray, faces: np.ndarray, inside: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Keep faces whose three vertices are ``inside`` (V,) bool; drop unused vertices."""
+    keep = inside[faces].all(1)
+    f = faces[keep]
+    used = np.unique(f)
+    remap = np.full(len(vertices), -1, np.int64)
+    remap[used] = np.arange(len(used))
+    return vertices[used], remap[f]

@@ -1,0 +1,50 @@
+"""Options shared by every reconstructor: the finishing steps (clean, remesh, UVs, labels). Light module."""
+
+from __future__ import annotations
+
+from pydantic import Field
+
+from pgc.options import Options
+
+
+class FinishOptions(Options):
+    """Finishing of a raw surface into a simulation-quality, UV-mapped, labelled mesh."""
+
+    target_vertices: int = Field(15_000, ge=100, le=2_000_000,
+                                 description="vertex count of the isotropic remesh (paper: 11-18k)")
+    remesh_iterations: int = Field(6, ge=1, le=50, description="isotropic remeshing iterations per pass")
+    min_component_fraction: float = Field(0.02, ge=0.0, le=1.0,
+                                          description="drop connected components with fewer faces than this "
+                                                      "fraction of the largest one")
+    max_hole_edges: int = Field(200, ge=0, description="close holes bounded by at most this many edges")
+    uv_resolution: int = Field(1024, ge=64, le=16384, description="texture size the UV atlas is packed for (px)")
+    uv_padding: int = Field(2, ge=0, le=64, description="texels between UV charts")
+    label_depth_tolerance_px: float = Field(1.5, gt=0.0, description="visibility test tolerance of the label "
+                                                                       "vote, in pixel footprints")
+    label_smooth_iterations: int = Field(2, ge=0, le=20, description="majority-filter passes over face labels")
+    min_views: int = Field(4, ge=2, description="fewest views a capture must have")
+
+
+class DenseOptions(FinishOptions):
+    """Multi-view stereo (plane sweep guided by the visual hull), shared by the open3d and colmap reconstructors."""
+
+    neighbours: int = Field(6, ge=1, le=32, description="neighbour views per reference view")
+    top_k: int = Field(3, ge=1, le=32, description="best neighbours averaged per depth hypothesis")
+    window: int = Field(7, ge=3, le=31, description="NCC window side (pixels, odd)")
+    band: float = Field(0.12, gt=0.0, description="depth range swept behind the visual hull (metres)")
+    step_px: float = Field(0.5, gt=0.0, le=4.0, description="depth step in pixel footprints")
+    min_score: float = Field(0.5, ge=-1.0, le=1.0, description="lowest accepted NCC")
+    min_consistent: int = Field(2, ge=0, description="neighbour depth maps that must agree with a depth")
+    consistency: float = Field(0.01, gt=0.0, description="relative depth agreement of the consistency check")
+    hull_fill: bool = Field(True, description="add visual-hull surface points where stereo found none "
+                                               "(the hull bounds the surface; exact where it is convex)")
+    hull_margin_px: float = Field(2.0, ge=0.0, description="trim surface parts farther than this many pixel "
+                                                            "footprints outside the visual hull")
+
+    def stereo(self):
+        """The matching :class:`pgc.geometry.stereo.StereoSettings`."""
+        from pgc.geometry.stereo import StereoSettings
+
+        return StereoSettings(neighbours=self.neighbours, top_k=self.top_k, window=self.window | 1,
+                              band=self.band, step_px=self.step_px, min_score=self.min_score,
+                              min_consistent=self.min_consistent, consistency=self.consistency)

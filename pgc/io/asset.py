@@ -1,0 +1,140 @@
+"""The garment asset directory, the output of ``pgc reconstruct``::
+
+    manifest.json    schema_version, pgc version, package versions, resolved config, figures, file list
+    garment.obj      garment rest mesh with UV atlas (seams kept) and face labels
+    body.ply         full capture-pose mesh: positions float32, faces, face labels (body.obj if it has UVs)
+    gaussians.ply    Gaussians bound to garment faces: 3DGS layout baked on the rest mesh + the binding
+    albedo.exr       base-colour texture, linear float32 (albedo.png: an 8-bit sRGB preview of it)
+    material.json    {"brdf": name, "params": {...}}
+    light.json       {"radiance": [r, g, b], "rotation_deg": deg[, "envmap": "light_envmap.exr"]}
+
+Every file is written atomically and the manifest last: a directory without a manifest is incomplete.
+Reading checks ``schema_version`` first: an unknown version fails with a clear message.
+"""
+
+from __future__ import annotations
+
+import datetime
+import importlib.metadata as metadata
+import json
+import os
+import platform
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pgc.errors import PGCDataError
+from pgc.io import images as imgio
+from pgc.io.atomic import write_json
+from pgc.io.gaussians_ply import read_bound_gaussians_ply, write_bound_gaussians_ply
+from pgc.io.mesh import read_mesh, write_mesh
+from pgc.types import GarmentAsset, Light, Material
+
+SCHEMA_VERSION = 1
+MANIFEST = "manifest.json"
+VERSIONED_PACKAGES = ("pgc", "numpy", "scipy", "trimesh", "torch", "jax", "mitsuba", "drjit", "open3d-cpu",
+                      "pycolmap", "pymeshlab", "xatlas", "onnxruntime", "opencv-python-headless")
+
+
+def package_versions(names: tuple[str, ...] = VERSIONED_PACKAGES) -> dict[str, str]:
+    """The Python version and the installed versions of ``names`` (from package metadata, nothing imported);
+    packages that are not installed are left out."""
+    out = {"python": platform.python_version()}
+    for name in names:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            continue
+    return out
+
+
+def write_asset(path: str | os.PathLike, asset: GarmentAsset) -> None:
+    """Write ``asset`` as an asset directory (created if needed; existing files are replaced)."""
+    root = Path(path)
+    root.mkdir(parents=True, exist_ok=True)
+    files: dict[str, str] = {"garment": "garment.obj", "body": "body.ply" if asset.body.uv is None else "body.obj",
+                             "gaussians": "gaussians.ply", "material": "material.json", "light": "light.json"}
+    write_mesh(root / files["garment"], asset.garment)
+    write_mesh(root / files["body"], asset.body)
+    write_bound_gaussians_ply(root / files["gaussians"], asset.gaussians, asset.garment.vertices,
+                              asset.garment.faces)
+    material: dict[str, Any] = {"brdf": asset.material.brdf, "params": asset.material.params}
+    if asset.material.base_color is not None:
+        files["albedo"] = material["base_color"] = "albedo.exr"
+        files["albedo_preview"] = "albedo.png"
+        imgio.write_exr(root / files["albedo"], asset.material.base_color)
+        imgio.write_image(root / files["albedo_preview"], asset.material.base_color)
+    write_json(root / files["material"], material)
+    light: dict[str, Any] = {"radiance": asset.light.radiance.tolist(), "rotation_deg": float(asset.light.rotation_deg)}
+    if asset.light.envmap is not None:
+        files["envmap"] = light["envmap"] = "light_envmap.exr"
+        imgio.write_exr(root / files["envmap"], asset.light.envmap)
+    write_json(root / files["light"], light)
+    write_json(root / MANIFEST, {
+        "schema_version": SCHEMA_VERSION,
+        "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "versions": package_versions(),
+        "files": files,
+        "counts": {"garment_vertices": len(asset.garment.vertices), "garment_faces": len(asset.garment.faces),
+                   "gaussians": len(asset.gaussians), "sh_degree": asset.gaussians.sh_degree},
+        "config": asset.config,
+        "figures": asset.figures,
+    })
+
+
+def _load_json(path: Path) -> Any:
+    if not path.is_file():
+        raise PGCDataError(f"{path}: not found")
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise PGCDataError(f"{path}: malformed JSON ({exc})") from exc
+
+
+def read_manifest(path: str | os.PathLike) -> dict[str, Any]:
+    """The manifest of an asset directory, after checking its schema version."""
+    root = Path(path)
+    if not (root / MANIFEST).is_file():
+        raise PGCDataError(f"{root}: no {MANIFEST}; not a PGC asset directory (or an incomplete write)")
+    manifest = _load_json(root / MANIFEST)
+    version = manifest.get("schema_version") if isinstance(manifest, dict) else None
+    if version != SCHEMA_VERSION:
+        raise PGCDataError(f"{root / MANIFEST}: unknown asset schema_version {version!r}; this PGC reads version "
+                           f"{SCHEMA_VERSION}. Re-create the asset with this PGC (pgc reconstruct) or use the PGC "
+                           "version that wrote it")
+    if not isinstance(manifest.get("files"), dict):
+        raise PGCDataError(f"{root / MANIFEST}: field 'files' must be an object naming the asset files")
+    return manifest
+
+
+def read_asset(path: str | os.PathLike) -> GarmentAsset:
+    """Read an asset directory written by :func:`write_asset`."""
+    root = Path(path)
+    manifest = read_manifest(root)
+    files = manifest["files"]
+
+    def file(key: str) -> Path:
+        if key not in files:
+            raise PGCDataError(f"{root / MANIFEST}: 'files' has no entry '{key}'")
+        return root / files[key]
+
+    garment = read_mesh(file("garment"), name="garment")
+    body = read_mesh(file("body"), name="body")
+    gaussians = read_bound_gaussians_ply(file("gaussians"))
+    if len(gaussians) and gaussians.parent.max() >= len(garment.faces):
+        raise PGCDataError(f"{file('gaussians')}: parent face {gaussians.parent.max()} out of range for the "
+                           f"{len(garment.faces)} faces of {file('garment').name}")
+    mat = _load_json(file("material"))
+    if not isinstance(mat, dict) or not isinstance(mat.get("brdf"), str):
+        raise PGCDataError(f"{file('material')}: needs a string field 'brdf'")
+    base_color = imgio.read_exr(root / mat["base_color"]) if mat.get("base_color") else None
+    material = Material(brdf=mat["brdf"], params=mat.get("params", {}), base_color=base_color)
+    lt = _load_json(file("light"))
+    radiance = np.asarray(lt.get("radiance", [1, 1, 1]), dtype=np.float64) if isinstance(lt, dict) else None
+    if radiance is None or radiance.shape != (3,) or not np.all(np.isfinite(radiance)):
+        raise PGCDataError(f"{file('light')}: 'radiance' must be 3 finite numbers")
+    envmap = imgio.read_exr(root / lt["envmap"]) if lt.get("envmap") else None
+    light = Light(radiance=radiance, envmap=envmap, rotation_deg=float(lt.get("rotation_deg", 0.0)))
+    return GarmentAsset(garment=garment, body=body, gaussians=gaussians, material=material, light=light,
+                        config=manifest.get("config", {}), figures=manifest.get("figures", {}))

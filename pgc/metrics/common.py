@@ -1,0 +1,42 @@
+"""Helpers shared by the metrics: display encoding, masked means, the mask's bounding box."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pgc.errors import PGCDataError
+
+
+def display_255(linear: np.ndarray) -> np.ndarray:
+    """Linear RGB in [0, 1] -> sRGB-encoded values scaled to [0, 255], float64 (FSIM's constants assume 255)."""
+    from pgc.io.images import linear_to_srgb
+
+    return linear_to_srgb(linear).astype(np.float64) * 255.0
+
+
+def masked_mean(values: np.ndarray, mask: np.ndarray | None, what: str) -> float:
+    """Mean of ``values`` (H, W) or (H, W, C) weighted by ``mask`` (H, W) in [0, 1] (plain mean if None)."""
+    if mask is None:
+        return float(np.mean(values))
+    weights = np.asarray(mask, np.float64)
+    if values.ndim == 3:
+        weights = np.broadcast_to(weights[..., None], values.shape)
+    total = weights.sum()
+    if total <= 0:
+        raise PGCDataError(f"{what}: the mask is empty (all zero); nothing to measure")
+    return float((values * weights).sum() / total)
+
+
+def mask_bbox(mask: np.ndarray, min_size: int = 1) -> tuple[slice, slice]:
+    """Row and column slices of the bounding box of ``mask > 0``, grown symmetrically (clamped to the image)
+    to at least ``min_size`` px a side where the image allows."""
+    rows, cols = np.nonzero(np.asarray(mask) > 0)
+    if rows.size == 0:
+        raise PGCDataError("metric: the mask is empty (all zero); nothing to measure")
+
+    def grow(lo: int, hi: int, n: int) -> slice:
+        size = max(hi - lo, min(min_size, n))
+        start = min(max(0, (lo + hi - size) // 2), n - size)
+        return slice(start, start + size)
+
+    return grow(rows.min(), rows.max() + 1, mask.shape[0]), grow(cols.min(), cols.max() + 1, mask.shape[1])

@@ -1,0 +1,90 @@
+"""``pgc animate``: simulate an asset's garment on a body motion; the run folder holds the trajectories.
+
+A motion is a built-in name (goalpost, spooky, arms-up, walk, arm-swing: the body model stored with a
+synthetic capture, posed by :func:`pgc.synth.motions.make_motion`) or a file (an .npz with ``vertices``
+(T, V, 3) and ``faces``, or a folder of OBJ frames) whose frame 0 is the capture pose.
+
+Run folder: ``run.json`` (asset, motion, fps, simulator, figures), ``garment.npz`` (vertices (T, V, 3)),
+``body.npz`` (vertices, faces); cached by content hash under ``stages/``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from pgc.config import RunConfig
+from pgc.errors import PGCDataError
+from pgc.events import Reporter
+from pgc.io.atomic import write_json
+from pgc.pipeline.cache import StageCache, array_key, content_key, file_key
+from pgc.pipeline.stage_io import save_npz
+from pgc.types import BodyMotion
+
+
+def source_capture(asset_config: dict) -> Path | None:
+    """The capture an asset was reconstructed from (recorded by ``pgc reconstruct``)."""
+    src = asset_config.get("source", {}).get("capture")
+    return Path(src) if src else None
+
+
+def resolve_motion(spec: str, capture_dir: Path | None, seconds: float | None = None) -> BodyMotion:
+    """A BodyMotion from a built-in motion name (needs the capture's body model) or a motion file."""
+    path = Path(spec)
+    if path.exists():
+        from pgc.io.motion import load_motion
+
+        return load_motion(path)
+    from pgc.synth.motions import MOTIONS, make_motion
+
+    if spec not in MOTIONS:
+        raise PGCDataError(f"motion '{spec}' is neither a file nor a built-in motion ({', '.join(MOTIONS)})")
+    if capture_dir is None or not (capture_dir / "ground_truth").is_dir():
+        raise PGCDataError(f"built-in motion '{spec}' needs the body model of a synthetic capture; the asset "
+                           "records none. Pass --capture DIR, or give a motion file (npz or OBJ folder)")
+    from pgc.synth.ground_truth import read_body_model
+
+    return make_motion(read_body_model(capture_dir), spec, seconds=seconds)
+
+
+def animate(asset_dir: str | Path, motion_spec: str, out: str | Path, cfg: RunConfig,
+            capture_dir: str | Path | None = None, reporter: Reporter | None = None) -> Path:
+    """Simulate the asset's garment on the motion; returns the run folder."""
+    from pgc.io.asset import read_asset
+
+    reporter = reporter or Reporter.silent()
+    asset_dir, out = Path(asset_dir), Path(out)
+    asset = read_asset(asset_dir)
+    capture = Path(capture_dir) if capture_dir else source_capture(asset.config)
+    settings = cfg.stage("animate")
+    motion = resolve_motion(motion_spec, capture, settings.seconds)
+    choice = cfg.roles["simulator"]
+    opts = choice.options.get(choice.name)
+    key = content_key("simulate", file_key(asset_dir / "garment.obj"), motion_spec, settings, choice.name,
+                      None if opts is None else opts.model_dump(mode="json"),
+                      array_key(motion.vertices))
+
+    def compute(folder: Path):
+        sim = cfg.create("simulator").simulate(asset.garment, motion, reporter)
+        save_npz(folder / "garment.npz", vertices=sim.vertices)
+        return sim.vertices, sim.figures
+
+    result = StageCache(out / "stages").run("simulate", key, compute,
+                                            lambda f: np.load(f / "garment.npz")["vertices"])
+    save_npz(out / "garment.npz", vertices=result.value, faces=asset.garment.faces)
+    save_npz(out / "body.npz", vertices=motion.vertices, faces=motion.faces)
+    write_json(out / "run.json", {
+        "asset": str(asset_dir.resolve()), "capture": None if capture is None else str(capture.resolve()),
+        "motion": motion_spec, "fps": motion.fps, "frames": motion.num_frames, "simulator": choice.name,
+        "figures": StageCache(out / "stages").figures("simulate")})
+    return out
+
+
+def read_run(run_dir: str | Path) -> dict:
+    run_dir = Path(run_dir)
+    meta = run_dir / "run.json"
+    if not meta.is_file():
+        raise PGCDataError(f"{run_dir}: not a run folder (no run.json); make one with 'pgc animate'")
+    return json.loads(meta.read_text())

@@ -1,0 +1,101 @@
+"""Hybrid rendering of one frame (METHOD.md section 5): ``I_t = h(G_t) + l(S_t)``.
+
+- ``G_t``: the optimised Gaussians rendered on the deformed garment (near field);
+- ``S_t``: the same Gaussians with their colour replaced by the far-field texture ``T_t`` (the PBR
+  renderer's outgoing radiance in texture space) looked up through their parent triangle, as the DC SH
+  term (higher SH set to zero), all other parameters unchanged;
+- ``l``: the alpha-aware low-pass of the filter role, ``h = 1 - l``.
+Compositing is done on un-premultiplied colours (render colour / alpha) so the alpha-aware blur sees the
+garment's own colour; the result is re-composited over the background with the near-field alpha.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pgc.roles.filter import Filter
+from pgc.roles.splat_renderer import RenderOutput
+from pgc.splats.binding import triangle_frames
+from pgc.splats.sh import rgb_to_sh_dc
+from pgc.texture.sample import sample_uv
+from pgc.types import GaussianSet, Mesh
+
+ALPHA_EPS = 1e-4
+
+
+def gaussian_uvs(gaussians: GaussianSet, mesh: Mesh) -> np.ndarray:
+    """(N, 2) UV of each Gaussian's foot point on its parent triangle (rest shape).
+
+    The local mean ``mu`` is mapped to the world, projected onto the parent triangle's plane and expressed
+    in barycentric coordinates (clamped into the triangle); the UV interpolates the corners' UVs. The
+    binding is a similarity per triangle, so these coordinates do not change when the garment deforms.
+    """
+    tau, R, k = triangle_frames(mesh.vertices, mesh.faces)
+    p = gaussians.parent
+    world = np.einsum("nij,nj->ni", R[p], gaussians.means.astype(np.float64)) * k[p, None] + tau[p]
+    corners = mesh.vertices[mesh.faces[p]]
+    bary = _barycentric_clamped(world, corners)
+    return np.einsum("nk,nkc->nc", bary, mesh.uv[mesh.face_uv[p]].astype(np.float64))
+
+
+def _barycentric_clamped(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    v0, v1, v2 = b - a, c - a, points - a
+    d00, d01, d11 = (v0 * v0).sum(1), (v0 * v1).sum(1), (v1 * v1).sum(1)
+    d20, d21 = (v2 * v0).sum(1), (v2 * v1).sum(1)
+    den = d00 * d11 - d01 * d01
+    ok = den > 1e-30
+    safe = np.where(ok, den, 1.0)
+    v = np.where(ok, (d11 * d20 - d01 * d21) / safe, 1 / 3)
+    w = np.where(ok, (d00 * d21 - d01 * d20) / safe, 1 / 3)
+    bary = np.clip(np.stack([1 - v - w, v, w], axis=1), 0.0, None)
+    return bary / bary.sum(1, keepdims=True)
+
+
+def far_field_gaussians(gaussians: GaussianSet, uvs: np.ndarray, texture: np.ndarray) -> GaussianSet:
+    """The Gaussians with colour from ``texture`` at ``uvs`` as their only (DC) SH term."""
+    colors = np.clip(sample_uv(np.asarray(texture, np.float64), uvs), 0.0, None)
+    sh = np.zeros((len(gaussians), 1, 3), np.float32)
+    sh[:, 0] = rgb_to_sh_dc(colors)
+    return GaussianSet(gaussians.parent, gaussians.means, gaussians.quats, gaussians.log_scales,
+                       gaussians.opacity_logits, sh)
+
+
+def unpremultiply(render: RenderOutput) -> np.ndarray:
+    """Colour of the splats themselves, (H, W, 3): render colour (over black) / alpha; 0 where alpha ~ 0."""
+    a = render.alpha[..., None]
+    return np.where(a > ALPHA_EPS, render.color / np.maximum(a, ALPHA_EPS), 0.0).astype(np.float32)
+
+
+@dataclass
+class HybridFrame:
+    hybrid: np.ndarray
+    """(H, W, 3) h(G) + l(S) composited over the background with G's alpha."""
+    near: np.ndarray
+    """(H, W, 3) G over the background (the 3DGS-only ablation)."""
+    far: np.ndarray
+    """(H, W, 3) S over the background (the PBR-only ablation through the Gaussians)."""
+    low_far: np.ndarray
+    """(H, W, 3) l(S), un-premultiplied."""
+    high_near: np.ndarray
+    """(H, W, 3) h(G), un-premultiplied (signed)."""
+    alpha: np.ndarray
+    """(H, W) alpha of G."""
+
+
+def compose(near: RenderOutput, far: RenderOutput, filt: Filter, kernel_size: int,
+            background: np.ndarray | None = None) -> HybridFrame:
+    """Combine the near-field and far-field renders of one view (both rendered over black)."""
+    g, s = unpremultiply(near), unpremultiply(far)
+    high = filt.highpass(g, near.alpha, kernel_size)
+    low = filt.lowpass(s, far.alpha, kernel_size)
+    colour = np.clip(high + low, 0.0, None)
+    a = near.alpha[..., None]
+    bg = np.zeros_like(colour) if background is None else np.broadcast_to(background, colour.shape)
+
+    def over(c: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+        return (alpha * c + (1 - alpha) * bg).astype(np.float32)
+
+    return HybridFrame(over(colour, a), over(g, a), over(s, far.alpha[..., None]), low, high, near.alpha)

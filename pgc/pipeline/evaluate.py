@@ -1,0 +1,127 @@
+"""``pgc eval``: metrics of a rendered run against ground truth, for the hybrid and both ablations.
+
+Ground truth: for a synthetic capture, the run's own frames are rendered with the ground-truth materials
+on matching geometry: the ground-truth garment is tied to the reconstructed rest garment
+(:mod:`pgc.pipeline.transfer`) and carried along its simulated motion; the body follows the run's motion.
+For a folder of images, ``frame_XXXX_CAMERA.png`` files are compared directly.
+Metrics are restricted to the garment: the union of the ground-truth garment coverage and the rendered
+alpha (both over black).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pgc.config import RunConfig
+from pgc.errors import PGCDataError
+from pgc.events import Reporter
+from pgc.io.atomic import write_json
+from pgc.pipeline.animate import read_run
+from pgc.pipeline.stage_io import save_npz
+
+VARIANTS = {"hybrid": "hybrid", "3dgs_only": "near", "pbr_only": "pbr"}
+"""Metric key -> the render layer it evaluates."""
+
+
+def rendered_frames(run_dir: Path) -> tuple[dict[str, Any], list[int]]:
+    meta_path = run_dir / "render" / "render.json"
+    if not meta_path.is_file():
+        raise PGCDataError(f"{run_dir}: no rendered frames (render/render.json); run 'pgc render {run_dir}' first")
+    meta = json.loads(meta_path.read_text())
+    return meta, list(meta["frames"])
+
+
+def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], camera_names: list[str],
+                           spp: int, reporter: Reporter) -> list[dict[str, np.ndarray]]:
+    """Ground-truth renders of the run's frames (cached in ``RUN/gt``)."""
+    from pgc.io.asset import read_asset
+    from pgc.io.capture import read_capture
+    from pgc.pipeline.transfer import embed, place
+    from pgc.synth.frames import render_frames
+    from pgc.synth.ground_truth import read_ground_truth
+
+    cache = run_dir / "gt"
+    paths = [cache / f"frame_{t:04d}_spp{spp}.npz" for t in frames]
+    if all(p.is_file() for p in paths):
+        return [dict(np.load(p)) for p in paths]
+    meta = read_run(run_dir)
+    asset = read_asset(meta["asset"])
+    gt = read_ground_truth(capture_dir)
+    by_name = {c.name: c for c in read_capture(capture_dir).cameras}
+    missing = [n for n in camera_names if n not in by_name]
+    if missing:
+        raise PGCDataError(f"ground truth {capture_dir}: cameras {missing} of the run are not in the capture")
+    cameras = [by_name[n] for n in camera_names]
+    garment = np.load(run_dir / "garment.npz")["vertices"]
+    body = np.load(run_dir / "body.npz")["vertices"]
+    if max(frames) >= len(garment) or len(body) != len(garment):
+        raise PGCDataError(f"{run_dir}: rendered frames {frames} do not match the simulated frames "
+                           f"({len(garment)} garment, {len(body)} body)")
+    embedding = embed(gt.garment.vertices, asset.garment)
+    gt_garment = np.stack([place(embedding, asset.garment, garment[t]) for t in frames])
+    out = render_frames(gt, gt_garment, body[frames], cameras, spp=spp, reporter=reporter)
+    for p, frame in zip(paths, out):
+        save_npz(p, **frame)
+    return out
+
+
+def evaluate_run(run_dir: str | Path, gt: str | Path, cfg: RunConfig, reporter: Reporter | None = None,
+                 out: str | Path | None = None) -> dict[str, Any]:
+    """Metrics per frame and mean for every variant; written to ``out`` (default RUN/metrics.json)."""
+    reporter = reporter or Reporter.silent()
+    run_dir, gt = Path(run_dir), Path(gt)
+    meta, frames = rendered_frames(run_dir)
+    metrics = cfg.roles["metric"].create_all()
+    if (gt / "ground_truth").is_dir() or (gt / "scene.json").is_file():
+        truth = synthetic_ground_truth(run_dir, gt if (gt / "ground_truth").is_dir() else gt.parent, frames,
+                                       meta["cameras"], cfg.stage("eval").gt_spp, reporter)
+        targets = [(f["color"] * f["garment_mask"][..., None], f["garment_mask"]) for f in truth]
+    else:
+        targets = [_image_folder_frame(gt, t, meta["cameras"]) for t in frames]
+    per_frame: dict[str, list[dict[str, float]]] = {k: [] for k in VARIANTS}
+    with reporter.stage("eval", total=len(frames)) as st:
+        for i, t in enumerate(frames):
+            pred = np.load(run_dir / "render" / f"frame_{t:04d}.npz")
+            target, coverage = targets[i]
+            if target.shape != pred["hybrid"].shape:
+                raise PGCDataError(f"frame {t}: ground truth {target.shape} and render {pred['hybrid'].shape} "
+                                   "differ in size; render and ground truth must use the same cameras")
+            for key, layer in VARIANTS.items():
+                alpha = pred["pbr_alpha"] if layer == "pbr" else pred["alpha"]
+                row = {"frame": t}
+                for name, metric in metrics.items():
+                    vals = [metric(pred[layer][c], target[c], _region(coverage[c], alpha[c]))
+                            for c in range(len(target))]
+                    row[name] = float(np.mean(vals))
+                per_frame[key].append(row)
+            st.progress(i + 1)
+    result: dict[str, Any] = {"run": str(run_dir), "ground_truth": str(gt), "frames": frames,
+                              "cameras": meta["cameras"], "kernel_size": meta.get("kernel_size")}
+    for key, rows in per_frame.items():
+        result[key] = {name: float(np.mean([r[name] for r in rows])) for name in metrics}
+        result[key]["per_frame"] = rows
+    write_json(Path(out) if out else run_dir / "metrics.json", result)
+    return result
+
+
+def _region(coverage: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    return ((coverage > 0.5) | (alpha > 0.5)).astype(np.float32)
+
+
+def _image_folder_frame(folder: Path, t: int, cameras: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    from pgc.io.images import read_image
+
+    imgs, covs = [], []
+    for name in cameras:
+        path = folder / f"frame_{t:04d}_{name}.png"
+        if not path.is_file():
+            raise PGCDataError(f"ground-truth folder {folder}: missing {path.name} (expected frame_XXXX_CAMERA.png "
+                               "for every rendered frame and camera)")
+        img = read_image(path)
+        imgs.append(img[..., :3])
+        covs.append(np.ones(img.shape[:2], np.float32))
+    return np.stack(imgs), np.stack(covs)

@@ -1,0 +1,136 @@
+"""``pgc reconstruct``: capture -> garment asset, every stage cached by content hash and resumable.
+
+Stages (folder ``OUT/stages/<name>``): ``mesh`` (reconstructor: labelled full-body mesh with UVs) ->
+``splats`` (mesh-embedded Gaussians fitted on the full mesh, then only the garment's kept) ->
+``base_color`` (albedo estimator + colour correction + UV merge on the garment) -> ``material``
+(BRDF parameters and the constant light, fitted by the PBR renderer) -> the asset directory ``OUT``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pgc.config import RunConfig
+from pgc.events import Reporter
+from pgc.pipeline.cache import StageCache, content_key, file_key
+from pgc.geometry.garment import garment_selection
+from pgc.pipeline.garment import garment_gaussians
+from pgc.pipeline.stage_io import load_gaussians, load_mesh, save_gaussians, save_mesh
+from pgc.types import GarmentAsset, Light, Material, Mesh
+
+
+def _impl_key(cfg: RunConfig, role: str) -> dict[str, Any]:
+    choice = cfg.roles[role]
+    opts = choice.options.get(choice.name)
+    return {"role": role, "name": choice.name, "options": None if opts is None else opts.model_dump(mode="json")}
+
+
+def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
+                reporter: Reporter | None = None) -> GarmentAsset:
+    """Run every stage (reusing cached ones) and write the asset to ``out``."""
+    from pgc.io.asset import write_asset
+    from pgc.io.capture import read_capture
+
+    reporter = reporter or Reporter.silent()
+    out = Path(out)
+    cache = StageCache(out / "stages")
+    capture = read_capture(capture_dir)
+    capture_key = file_key(capture_dir)
+    timings: dict[str, float] = {}
+
+    def timed(name: str, fn):
+        start = time.perf_counter()
+        result = fn()
+        timings[name] = timings.get(name, 0.0) + (0.0 if result.cached else time.perf_counter() - start)
+        return result
+
+    # 1. mesh
+    mesh_key = content_key("mesh", capture_key, _impl_key(cfg, "reconstructor"))
+
+    def compute_mesh(folder: Path):
+        rec = cfg.create("reconstructor").reconstruct(capture, reporter)
+        save_mesh(folder / "mesh.npz", rec.mesh)
+        return rec.mesh, rec.figures
+
+    full = timed("mesh", lambda: cache.run("mesh", mesh_key, compute_mesh,
+                                           lambda f: load_mesh(f / "mesh.npz")))
+    sel = garment_selection(full.value, capture.garment_label_ids)
+    garment, _ = full.value.submesh(sel, name="garment")
+
+    # 2. splats
+    splat_settings = cfg.stage("fit_splats")
+    splat_key = content_key("splats", mesh_key, _impl_key(cfg, "splat_renderer"), splat_settings)
+
+    def compute_splats(folder: Path):
+        fit = cfg.create("splat_renderer").fit(capture, full.value, splat_settings, reporter)
+        save_gaussians(folder / "gaussians_full.npz", fit.gaussians)
+        return fit.gaussians, fit.figures
+
+    splats = timed("splats", lambda: cache.run("splats", splat_key, compute_splats,
+                                               lambda f: load_gaussians(f / "gaussians_full.npz")))
+    gaussians = garment_gaussians(splats.value, sel)
+
+    # 3. base colour
+    tex_settings = cfg.stage("base_color")
+    tex_key = content_key("base_color", mesh_key, _impl_key(cfg, "albedo_estimator"), tex_settings)
+
+    def compute_texture(folder: Path):
+        from pgc.albedo.texture_stage import build_base_color
+
+        estimator = cfg.create("albedo_estimator")
+        shading = _white_shading(cfg, full.value) if getattr(estimator, "needs_shading", False) else None
+        res = build_base_color(capture, garment, estimator, tex_settings.texture_size, tex_settings.num_views,
+                               occluder=full.value, shading=shading, reporter=reporter)
+        np.save(folder / "base_color.npy", res.texture)
+        return res.texture, res.figures
+
+    texture = timed("base_color", lambda: cache.run("base_color", tex_key, compute_texture,
+                                                    lambda f: np.load(f / "base_color.npy")))
+
+    # 4. material and light
+    mat_settings = cfg.stage("material")
+    mat_key = content_key("material", tex_key, _impl_key(cfg, "pbr_renderer"), _impl_key(cfg, "brdf"), mat_settings)
+
+    def compute_material(folder: Path):
+        renderer = cfg.create("pbr_renderer")
+        init = Material(cfg.roles["brdf"].name, cfg.create("brdf").initial_params(), texture.value)
+        fit = renderer.fit(capture, garment, init, mat_settings, reporter)
+        (folder / "material.json").write_text(json.dumps(
+            {"brdf": fit.material.brdf, "params": fit.material.params,
+             "light": {"radiance": fit.light.radiance.tolist()}, "figures": fit.figures}, indent=2))
+        return (fit.material, fit.light), fit.figures
+
+    def load_material(folder: Path):
+        d = json.loads((folder / "material.json").read_text())
+        return Material(d["brdf"], d["params"], texture.value), Light(np.asarray(d["light"]["radiance"]))
+
+    material = timed("material", lambda: cache.run("material", mat_key, compute_material, load_material))
+    mat, light = material.value
+    mat.base_color = texture.value
+
+    figures = {name: cache.figures(name) for name in ("mesh", "splats", "base_color", "material")}
+    figures["seconds"] = timings
+    figures["gaussians_garment"] = len(gaussians)
+    asset = GarmentAsset(garment=garment, body=full.value, gaussians=gaussians, material=mat, light=light,
+                         config=dict(cfg.to_dict(), source={"capture": str(Path(capture_dir).resolve())}),
+                         figures=figures)
+    write_asset(out, asset)
+    return asset
+
+
+def _white_shading(cfg: RunConfig, mesh: Mesh):
+    """A function giving the white-albedo shading of ``mesh`` in a view (unit constant light)."""
+    renderer = cfg.create("pbr_renderer")
+    white = Material("lambertian", {}, None)
+    white.params["base_color"] = [1.0, 1.0, 1.0]
+
+    def shade(view):
+        return renderer.render(mesh, white, Light(np.ones(3)), view.camera).color
+
+    return shade
+

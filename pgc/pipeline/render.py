@@ -1,0 +1,133 @@
+"""``pgc render``: hybrid rendering of an animated run (METHOD.md section 5), with its ablations.
+
+Per rendered frame and camera: the near field ``G_t`` (the optimised Gaussians on the simulated garment),
+the far field ``S_t`` (the Gaussians coloured by the PBR renderer's texture-space radiance ``T_t``), the
+hybrid ``h(G_t) + l(S_t)``, and the PBR-only ablation (the mesh rendered by the PBR renderer). The low-pass
+kernel is chosen once on the training frame (the capture pose) by the configured rule.
+Output: ``RUN/render/frame_XXXX.npz`` (arrays stacked over cameras) and ``RUN/render/render.json``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pgc.config import RunConfig
+from pgc.events import Reporter
+from pgc.io.atomic import write_json
+from pgc.pipeline.animate import read_run
+from pgc.pipeline.compose import compose, far_field_gaussians, gaussian_uvs, unpremultiply
+from pgc.pipeline.stage_io import save_npz
+from pgc.splats.binding import bind
+from pgc.types import Camera, GarmentAsset, Light, Mesh
+
+
+def spread(items: list, count: int) -> list:
+    """``count`` items evenly spread over ``items`` (all when there are fewer)."""
+    if count >= len(items):
+        return list(items)
+    return [items[int(i)] for i in np.linspace(0, len(items) - 1, count).round().astype(int)]
+
+
+class HybridRenderer:
+    """Renders one garment state from one camera with the configured splat renderer, PBR renderer and filter."""
+
+    def __init__(self, asset: GarmentAsset, cfg: RunConfig, light: Light | None = None) -> None:
+        self.asset = asset
+        self.splats = cfg.create("splat_renderer")
+        self.pbr = cfg.create("pbr_renderer")
+        self.filter = cfg.create("filter")
+        self.settings = cfg.stage("render")
+        self.light = light or asset.light
+        self.uvs = gaussian_uvs(asset.gaussians, asset.garment)
+
+    def mesh_at(self, vertices: np.ndarray) -> Mesh:
+        g = self.asset.garment
+        return Mesh(vertices, g.faces, g.uv, g.face_uv, g.face_labels, name="garment")
+
+    def layers(self, vertices: np.ndarray, camera: Camera) -> dict[str, Any]:
+        """Near-field, far-field and PBR-only renders of the garment at ``vertices`` (before composition)."""
+        mesh = self.mesh_at(vertices)
+        faces = self.asset.garment.faces
+        near = self.splats.render(bind(self.asset.gaussians, vertices, faces), camera)
+        size = self.settings.texture_size
+        texture, _ = self.pbr.render_texture(mesh, self.asset.material, self.light, camera, (size, size))
+        far_set = far_field_gaussians(self.asset.gaussians, self.uvs, texture)
+        far = self.splats.render(bind(far_set, vertices, faces), camera)
+        pbr = self.pbr.render(mesh, self.asset.material, self.light, camera)
+        return {"near": near, "far": far, "pbr": pbr}
+
+    def frame(self, vertices: np.ndarray, camera: Camera, kernel_size: int) -> dict[str, np.ndarray]:
+        lay = self.layers(vertices, camera)
+        h = compose(lay["near"], lay["far"], self.filter, kernel_size)
+        return {"hybrid": h.hybrid, "near": h.near, "far": h.far, "pbr": lay["pbr"].color,
+                "alpha": h.alpha, "pbr_alpha": lay["pbr"].alpha, "low_far": h.low_far, "high_near": h.high_near}
+
+
+def choose_kernel(renderer: HybridRenderer, capture, cfg: RunConfig) -> dict[str, Any]:
+    """Apply the configured kernel rule to the training frame (capture pose) over a few capture views."""
+    from pgc.albedo.texture_stage import garment_mask
+    from pgc.filtering.auto import select_kernel
+
+    settings = cfg.stage("render")
+    rest = renderer.asset.garment.vertices
+    choices = []
+    for view in spread(capture.views, settings.kernel_views):
+        lay = renderer.layers(rest, view.camera)
+        mask = garment_mask(view, capture.garment_label_ids)
+        choices.append(select_kernel(settings.kernel, renderer.filter, view.image, lay["near"].alpha,
+                                     unpremultiply(lay["near"]), unpremultiply(lay["far"]), lay["far"].alpha, mask))
+    sizes = [c.size for c in choices]
+    size = int(np.median(sizes)) | 1
+    return {"kernel_size": size, "criterion": choices[0].criterion, "per_view": sizes}
+
+
+def envmap_light(run_dir: str | Path, path: str | Path) -> Light:
+    """An environment-map light (EXR, latitude-longitude, +Y up) scaled by the asset's fitted radiance."""
+    from pgc.io.asset import read_asset
+    from pgc.io.images import read_exr
+
+    asset = read_asset(read_run(run_dir)["asset"])
+    return Light(asset.light.radiance, envmap=read_exr(path))
+
+
+def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
+               reporter: Reporter | None = None, rotate_light: bool = False) -> Path:
+    """Render the run's frames (every ``frame_stride``-th) from ``views`` capture cameras; with
+    ``rotate_light`` the environment turns 360 degrees about +Y over the rendered frames."""
+    from pgc.io.asset import read_asset
+    from pgc.io.capture import read_capture
+
+    reporter = reporter or Reporter.silent()
+    run_dir = Path(run_dir)
+    meta = read_run(run_dir)
+    asset = read_asset(meta["asset"])
+    capture = read_capture(meta["capture"]) if meta.get("capture") else None
+    if capture is None:
+        from pgc.errors import PGCDataError
+
+        raise PGCDataError(f"{run_dir}: the run records no capture; its cameras are needed to render")
+    settings = cfg.stage("render")
+    renderer = HybridRenderer(asset, cfg, light)
+    with reporter.stage("choose_kernel") as st:
+        kernel = choose_kernel(renderer, capture, cfg)
+        st.record(kernel_size=kernel["kernel_size"])
+    vertices = np.load(run_dir / "garment.npz")["vertices"]
+    frames = list(range(0, len(vertices), settings.frame_stride))
+    cameras = spread(capture.cameras, settings.views)
+    out = run_dir / "render"
+    with reporter.stage("render_frames", total=len(frames) * len(cameras)) as st:
+        for i, t in enumerate(frames):
+            if rotate_light:
+                renderer.light = replace(renderer.light, rotation_deg=360.0 * i / len(frames))
+            per_cam = [renderer.frame(vertices[t].astype(np.float64), cam, kernel["kernel_size"]) for cam in cameras]
+            save_npz(out / f"frame_{t:04d}.npz", **{k: np.stack([p[k] for p in per_cam]) for k in per_cam[0]})
+            st.progress((i + 1) * len(cameras))
+    write_json(out / "render.json", {"frames": frames, "cameras": [c.name for c in cameras], **kernel,
+                                     "light": {"radiance": renderer.light.radiance.tolist(),
+                                               "envmap": renderer.light.envmap is not None,
+                                               "rotating": rotate_light}})
+    return out

@@ -1,0 +1,26 @@
+"""Options of the animation, rendering and evaluation stages."""
+
+from pydantic import Field
+
+from pgc.filtering.auto import KernelSelection
+from pgc.options import Options
+
+
+class AnimateSettings(Options):
+    seconds: float | None = Field(None, gt=0, description="motion length; None: the motion's own length")
+
+
+class RenderSettings(Options):
+    kernel: KernelSelection = KernelSelection(mode="error")
+    """How the low-pass kernel is set (the error rule runs on the training frame, as in the paper)."""
+    views: int = Field(4, ge=1, description="capture cameras used for novel frames (evenly spread)")
+    frame_stride: int = Field(10, ge=1, description="render every n-th simulated frame")
+    texture_size: int = Field(256, ge=16, le=4096, description="far-field texture T_t resolution (texels)")
+    kernel_views: int = Field(4, ge=1, description="training views used to choose the kernel")
+
+
+class EvalSettings(Options):
+    gt_spp: int = Field(64, ge=1, description="path-tracing samples of the ground-truth renders")
+
+
+SETTINGS = {"animate": AnimateSettings, "render": RenderSettings, "eval": EvalSettings}

@@ -1,0 +1,114 @@
+"""Backend-neutral pieces of the splat fit (numpy): initial count, schedules, contour band, held-out split,
+back-facing faces, checkpoint fingerprint and the held-out model selection. Every backend's ``fit_splats``
+uses these, so the fits follow :class:`pgc.pipeline.settings_splats.FitSplatsSettings` identically.
+
+Schedules take the fraction ``p`` in [0, 1] of the fit done: ``step / iterations`` with a fixed step count, or
+the elapsed fraction of ``time_budget_s`` in auto mode.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from typing import Any, Callable
+
+import numpy as np
+
+from pgc.pipeline.settings_splats import FitSplatsSettings
+from pgc.types import Camera, Capture, Mesh
+
+PAPER_ITERATIONS = 30000
+COUNT_FRACTIONS = (0.3, 0.45, 0.6, 0.8)
+"""Top-contribution fractions tried (smallest first) when choosing the Gaussian count."""
+
+
+def initial_count(capture: Capture, s: FitSplatsSettings) -> int:
+    """``gaussians_per_pixel`` x 2 (front and back) x mean foreground pixels per view, clamped."""
+    covered = [float(np.sum(v.mask > 0.5)) if v.mask is not None else v.camera.width * v.camera.height
+               for v in capture.views]
+    return int(np.clip(round(s.gaussians_per_pixel * 2.0 * np.mean(covered)), s.min_gaussians, s.max_gaussians))
+
+
+def sh_degree_at(p: float, s: FitSplatsSettings) -> int:
+    """SH degree after fraction ``p``: one more every ``sh_interval`` of the paper's 30000 steps' worth."""
+    return min(s.max_sh_degree, int(p * PAPER_ITERATIONS / s.sh_interval))
+
+
+def position_lr_at(p: float, s: FitSplatsSettings) -> float:
+    """Exponential decay of the local-position lr from ``lr_position`` (p = 0) to ``lr_position_final`` (p = 1)."""
+    p = min(max(p, 0.0), 1.0)
+    return math.exp((1 - p) * math.log(s.lr_position) + p * math.log(s.lr_position_final))
+
+
+def auto_lr_factor(steps: float) -> float:
+    """sqrt(30000 / steps) clamped to [1, 10]: a short run moves about as far as the paper's 30000 steps."""
+    return float(np.clip(math.sqrt(PAPER_ITERATIONS / max(steps, 1.0)), 1.0, 10.0))
+
+
+def outside_band(mask: np.ndarray, band: float) -> np.ndarray:
+    """(H, W) float32: 1 outside the contour band of ``mask``, 0 inside it. The band lies between the erosion
+    and the dilation of the binarised mask by a square of side ``band * H`` (odd, >= 1)."""
+    from scipy.ndimage import binary_dilation, binary_erosion
+
+    side = max(1, int(round(band * mask.shape[0])) | 1)
+    m = np.asarray(mask) > 0.5
+    square = np.ones((side, side), bool)
+    ring = binary_dilation(m, square) != binary_erosion(m, square, border_value=1)
+    return (~ring).astype(np.float32)
+
+
+def heldout_split(n_views: int, every: int) -> tuple[list[int], list[int]]:
+    """(train, held-out) view indices: every ``every``-th view is held out when there are >= 2 x every views."""
+    held = list(range(every - 1, n_views, every)) if n_views >= 2 * every else []
+    return [i for i in range(n_views) if i not in held], held
+
+
+def backfacing_faces(mesh: Mesh, cameras: list[Camera]) -> np.ndarray:
+    """(F,) True for faces whose front side faces no camera."""
+    centroids = mesh.vertices[mesh.faces].mean(1)
+    normals = mesh.face_normals()
+    seen = np.zeros(len(mesh.faces), bool)
+    for cam in cameras:
+        seen |= np.sum(normals * (cam.center - centroids), axis=1) > 0
+    return ~seen
+
+
+def fingerprint(capture: Capture, mesh: Mesh, s: FitSplatsSettings, backend: str) -> str:
+    """Identity of a fit (mesh, views, settings that change the result, backend): checkpoints match on it."""
+    h = hashlib.sha256(backend.encode())
+    h.update(np.ascontiguousarray(mesh.vertices).tobytes() + np.ascontiguousarray(mesh.faces).tobytes())
+    h.update(json.dumps([v.camera.name for v in capture.views]).encode())
+    h.update(json.dumps(s.model_dump(exclude={"checkpoint_dir", "checkpoint_every", "log_every"}), sort_keys=True,
+                        default=str).encode())
+    return h.hexdigest()[:20]
+
+
+def select_model(contributions: np.ndarray, evaluate: Callable[[np.ndarray, int], float], degree: int,
+                 has_heldout: bool, s: FitSplatsSettings, figures: dict[str, Any]) -> tuple[np.ndarray, int]:
+    """Prune Gaussians whose summed compositing weight is below ``prune_weight``, then keep the smallest
+    top-contribution subset and the lowest SH degree whose held-out PSNR (``evaluate(keep, degree)``) is within
+    ``margin_db`` of the full model. Returns the keep mask and the degree; records the tables in ``figures``."""
+    keep = contributions >= s.prune_weight
+    figures["pruned_no_contribution"] = int((~keep).sum())
+    base = evaluate(keep, degree) if has_heldout else float("nan")
+    figures["psnr_heldout_full"] = base
+    if s.select_count and has_heldout:
+        ranked = np.argsort(-contributions)
+        tried = {}
+        for frac in COUNT_FRACTIONS:
+            subset = np.zeros_like(keep)
+            subset[ranked[:int(round(frac * keep.sum()))]] = True
+            tried[str(frac)] = evaluate(subset, degree)
+            if tried[str(frac)] >= base - s.margin_db:
+                keep = subset
+                break
+        figures["count_selection"] = tried
+    if s.select_sh and has_heldout:
+        by_degree = {d: evaluate(keep, d) for d in range(degree + 1)}
+        best = max(by_degree.values())
+        degree = min(d for d, v in by_degree.items() if v >= best - s.margin_db)
+        figures["sh_selection"] = {str(k): v for k, v in by_degree.items()}
+    figures["sh_degree"] = degree
+    figures["psnr_heldout"] = evaluate(keep, degree) if has_heldout else float("nan")
+    return keep, degree

@@ -1,0 +1,272 @@
+"""Ground-truth fabrics: BRDF parameters, procedural base-colour textures, a weave normal map, and short
+fibres standing off the surface (detail a coarse mesh cannot hold).
+
+Patterns are functions of the garment's rest-pose position (metres), baked into its UV atlas, so stripes
+and checks run straight across UV seams. Colours are linear RGB. BRDF parameter names are those of
+:mod:`pgc.brdfs.parameters` ('pgc-sheen': roughness, sheen_color, sheen_roughness).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pgc.errors import PGCDataError
+from pgc.types import Material, Mesh
+
+
+@dataclass(frozen=True)
+class Fabric:
+    """A fabric preset."""
+
+    name: str
+    brdf: str
+    params: dict = field(default_factory=dict)
+    pattern: str = "solid"
+    """'stripes', 'checks', 'knit', 'heather' (optionally with '+logo')."""
+    colors: tuple[tuple[float, float, float], ...] = ((0.5, 0.5, 0.5),)
+    weave_period: float = 0.004
+    """Weave (normal map) period, metres."""
+    weave_depth: float = 0.35
+    """Slope amplitude of the weave bumps (0 = flat)."""
+    fibre_density: float = 0.0
+    """Fibres per square metre of garment (0 = none)."""
+    fibre_length: float = 0.006
+    fibre_radius: float = 0.0003
+
+
+FABRICS: dict[str, Fabric] = {
+    "cotton": Fabric("cotton", "pgc-sheen", {"roughness": 0.9, "sheen_color": [0.06, 0.06, 0.06],
+                                            "sheen_roughness": 0.6},
+                     "stripes+logo", ((0.70, 0.69, 0.66), (0.03, 0.05, 0.16), (0.62, 0.05, 0.04)),
+                     weave_period=0.003, weave_depth=0.25),
+    "fleece": Fabric("fleece", "pgc-sheen", {"roughness": 0.8, "sheen_color": [0.35, 0.36, 0.35],
+                                            "sheen_roughness": 0.45},
+                     "heather", ((0.10, 0.20, 0.11), (0.16, 0.27, 0.15)), weave_period=0.005, weave_depth=0.2,
+                     fibre_density=2500.0, fibre_length=0.007, fibre_radius=0.0004),
+    "knit": Fabric("knit", "pgc-sheen", {"roughness": 0.85, "sheen_color": [0.25, 0.22, 0.2],
+                                        "sheen_roughness": 0.35},
+                   "knit", ((0.28, 0.03, 0.05), (0.62, 0.50, 0.34)), weave_period=0.006, weave_depth=0.5,
+                   fibre_density=1200.0, fibre_length=0.005, fibre_radius=0.0003),
+    "satin-like": Fabric("satin-like", "pgc-sheen", {"roughness": 0.4, "sheen_color": [0.85, 0.83, 0.78],
+                                                    "sheen_roughness": 0.22},
+                         "checks", ((0.04, 0.09, 0.32), (0.02, 0.20, 0.21)), weave_period=0.002, weave_depth=0.1),
+    "lambertian": Fabric("lambertian", "lambertian", {}, "checks", ((0.60, 0.26, 0.05), (0.60, 0.60, 0.58)),
+                         weave_depth=0.0),
+}
+"""The fabric presets by name."""
+
+
+def get_fabric(name: str) -> Fabric:
+    if name not in FABRICS:
+        raise PGCDataError(f"unknown fabric '{name}'; fabrics: {', '.join(FABRICS)}")
+    return FABRICS[name]
+
+
+# ----------------------------------------------------------------------------------------------- atlas
+
+
+def texel_positions(mesh: Mesh, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rest positions at the texel centres of the UV atlas: (size, size, 3) and a (size, size) bool
+    coverage; uncovered texels take the position of the nearest covered texel (seam padding)."""
+    from scipy.ndimage import distance_transform_edt
+
+    if mesh.uv is None:
+        raise PGCDataError(f"mesh '{mesh.name}' has no UVs; the fabric textures need a UV atlas")
+    pos = np.zeros((size, size, 3))
+    covered = np.zeros((size, size), bool)
+    uv_px = np.stack([mesh.uv[:, 0] * size, (1.0 - mesh.uv[:, 1]) * size], axis=1).astype(np.float64)
+    for f, fu in zip(mesh.faces, mesh.face_uv):
+        p = uv_px[fu]
+        x0, y0 = np.floor(np.maximum(p.min(axis=0) - 0.5, 0)).astype(int)
+        x1, y1 = np.ceil(np.minimum(p.max(axis=0) + 0.5, size)).astype(int)
+        if x1 <= x0 or y1 <= y0:
+            continue
+        ys, xs = np.mgrid[y0:y1, x0:x1] + 0.5
+        d = np.array([p[1] - p[0], p[2] - p[0]])
+        det = d[0, 0] * d[1, 1] - d[0, 1] * d[1, 0]
+        if abs(det) < 1e-12:
+            continue
+        rx, ry = xs - p[0, 0], ys - p[0, 1]
+        b1 = (rx * d[1, 1] - ry * d[1, 0]) / det
+        b2 = (ry * d[0, 0] - rx * d[0, 1]) / det
+        inside = (b1 >= -1e-6) & (b2 >= -1e-6) & (b1 + b2 <= 1 + 1e-6)
+        if not inside.any():
+            continue
+        v = mesh.vertices[f]
+        pts = v[0] + b1[..., None] * (v[1] - v[0]) + b2[..., None] * (v[2] - v[0])
+        iy, ix = np.nonzero(inside)
+        pos[iy + y0, ix + x0] = pts[iy, ix]
+        covered[iy + y0, ix + x0] = True
+    _, (ny, nx) = distance_transform_edt(~covered, return_indices=True)
+    return pos[ny, nx], covered
+
+
+def _smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
+    t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
+    return t * t * (3 - 2 * t)
+
+
+def _value_noise(p: np.ndarray, cell: float, seed: int) -> np.ndarray:
+    """Smooth 3D value noise in [0, 1] with lattice spacing ``cell`` metres (deterministic per seed)."""
+    q = p / cell
+    i = np.floor(q).astype(np.int64)
+    f = q - i
+    f = f * f * (3 - 2 * f)
+    out = np.zeros(p.shape[:-1])
+    for dx in (0, 1):
+        for dy in (0, 1):
+            for dz in (0, 1):
+                h = (i[..., 0] + dx) * 73856093 ^ (i[..., 1] + dy) * 19349663 ^ (i[..., 2] + dz) * 83492791 ^ seed
+                r = ((h * 2654435761) % 4294967296) / 4294967296.0
+                w = ((f[..., 0] if dx else 1 - f[..., 0]) * (f[..., 1] if dy else 1 - f[..., 1])
+                     * (f[..., 2] if dz else 1 - f[..., 2]))
+                out += w * r
+    return out
+
+
+def _logo_mask(p: np.ndarray, center: tuple[float, float], width: float) -> np.ndarray:
+    """Coverage of the text 'PGC' in a ring, printed on the front (+z) of the garment around ``center``."""
+    import cv2
+
+    res = 256
+    img = np.zeros((res, res), np.uint8)
+    cv2.circle(img, (res // 2, res // 2), int(res * 0.45), 255, thickness=int(res * 0.06), lineType=cv2.LINE_AA)
+    cv2.putText(img, "PGC", (int(res * 0.14), int(res * 0.63)), cv2.FONT_HERSHEY_DUPLEX, res / 110, 255,
+                thickness=max(1, res // 40), lineType=cv2.LINE_AA)
+    u = ((p[..., 0] - center[0]) / width + 0.5) * res
+    v = (0.5 - (p[..., 1] - center[1]) / width) * res
+    ok = (u >= 0) & (u < res - 1) & (v >= 0) & (v < res - 1) & (p[..., 2] > 0)
+    out = np.zeros(p.shape[:-1])
+    ui, vi = u[ok].astype(int), v[ok].astype(int)
+    out[ok] = img[vi, ui] / 255.0
+    return out
+
+
+def base_color(fabric: Fabric, positions: np.ndarray, texel_size: float, seed: int,
+               logo_center: tuple[float, float] = (0.0, 1.2)) -> np.ndarray:
+    """The fabric's base colour (..., 3) at rest ``positions`` (..., 3); ``texel_size`` (metres) sets the
+    anti-aliasing width of pattern edges."""
+    c = [np.asarray(x, np.float64) for x in fabric.colors]
+    x, y, z = positions[..., 0], positions[..., 1], positions[..., 2]
+    aa = max(texel_size, 1e-4)
+    kind = fabric.pattern.split("+")[0]
+    if kind == "stripes":
+        s = np.abs(np.mod(y / 0.05, 1.0) - 0.5) * 0.05  # distance to the stripe centre line, metres
+        t = _smoothstep(0.0125 - aa, 0.0125 + aa, s)
+        rgb = c[0] * (1 - t[..., None]) + c[1] * t[..., None]
+    elif kind == "checks":
+        angle = np.arctan2(x, z) * 0.16  # around the body, metres at ~16 cm radius
+        sx = _smoothstep(-aa, aa, np.sin(2 * np.pi * angle / 0.06) * 0.01)
+        sy = _smoothstep(-aa, aa, np.sin(2 * np.pi * y / 0.06) * 0.01)
+        t = (0.5 * sx + 0.5 * sy)[..., None]
+        rgb = c[0] * (1 - t) + c[1] * t
+    elif kind == "knit":
+        angle = np.arctan2(x, z) * 0.16
+        chevron = np.mod((y + np.abs(np.mod(angle / 0.03, 1.0) - 0.5) * 0.03) / 0.04, 1.0)
+        t = _smoothstep(0.5 - aa / 0.04, 0.5 + aa / 0.04, np.abs(chevron - 0.5) * 2)[..., None]
+        rgb = c[0] * (1 - t) + c[1] * t
+        rgb *= (0.85 + 0.3 * _value_noise(positions, 0.004, seed))[..., None]
+    elif kind == "heather":
+        n = _value_noise(positions, 0.01, seed) * 0.6 + _value_noise(positions, 0.003, seed + 1) * 0.4
+        rgb = c[0] + (c[1] - c[0]) * n[..., None]
+    elif kind == "solid":
+        rgb = np.broadcast_to(c[0], positions.shape).copy()
+    else:
+        raise PGCDataError(f"fabric '{fabric.name}': unknown pattern '{fabric.pattern}'")
+    if fabric.pattern.endswith("+logo"):
+        logo = _logo_mask(positions, logo_center, 0.16)[..., None]
+        rgb = rgb * (1 - logo) + c[2] * logo
+    return np.clip(rgb, 0.0, 1.0).astype(np.float32)
+
+
+def weave_normal_map(fabric: Fabric, size: int, texel_size: float) -> np.ndarray | None:
+    """Tangent-space normal map (size, size, 3), encoded (n + 1) / 2, of a plain weave (over-under bumps
+    with period ``weave_period``); None when the fabric is flat or the atlas cannot resolve the weave."""
+    period_px = fabric.weave_period / texel_size
+    if fabric.weave_depth <= 0 or period_px < 2.5:
+        period_px = 2.5 if fabric.weave_depth > 0 else 0.0
+    if period_px == 0.0:
+        return None
+    ys, xs = np.mgrid[0:size, 0:size].astype(np.float64) + 0.5
+    w = 2 * np.pi / period_px
+    # height h = A (sin(w x) cos(w y / 2) + cos(w y) sin(w x / 2)): threads crossing over and under
+    a = fabric.weave_depth / w
+    dhdx = a * (w * np.cos(w * xs) * np.cos(w * ys / 2) + 0.5 * w * np.cos(w * ys) * np.cos(w * xs / 2))
+    dhdy = a * (-0.5 * w * np.sin(w * xs) * np.sin(w * ys / 2) - w * np.sin(w * ys) * np.sin(w * xs / 2))
+    n = np.stack([-dhdx, dhdy, np.ones_like(xs)], axis=-1)  # image y points down, texture v up
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    return ((n + 1) / 2).astype(np.float32)
+
+
+def texel_size(mesh: Mesh, size: int) -> float:
+    """Mean edge of one texel on the surface, metres (surface area over covered UV area)."""
+    uv = mesh.uv[mesh.face_uv].astype(np.float64) * size
+    a, b = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
+    uv_area = 0.5 * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).sum()
+    return float(np.sqrt(mesh.face_areas().sum() / max(uv_area, 1e-12)))
+
+
+def make_material(fabric: Fabric, garment: Mesh, size: int, seed: int) -> tuple[Material, np.ndarray | None]:
+    """The ground-truth Material (base colour baked over ``garment``'s atlas, ``size`` texels square) and the
+    weave normal map (or None)."""
+    positions, _ = texel_positions(garment, size)
+    ts = texel_size(garment, size)
+    chest = garment.vertices[:, 1].min() * 0.3 + garment.vertices[:, 1].max() * 0.7
+    tex = base_color(fabric, positions, ts, seed, logo_center=(0.0, float(chest)))
+    material = Material(fabric.brdf, {k: (list(v) if isinstance(v, (list, tuple)) else float(v))
+                                      for k, v in fabric.params.items()}, tex)
+    return material, weave_normal_map(fabric, size, ts)
+
+
+# ---------------------------------------------------------------------------------------------- fibres
+
+
+@dataclass
+class Fibres:
+    """Short fibres rooted on garment faces; they follow any deformation of the garment."""
+
+    face: np.ndarray
+    """(N,) root face index."""
+    bary: np.ndarray
+    """(N, 3) barycentric root position."""
+    direction: np.ndarray
+    """(N, K - 1, 3) segment directions in the local (tangent, bitangent, normal) frame of the face."""
+    length: float
+    radius: float
+    color: np.ndarray
+    """(3,) linear RGB base colour of the fibres."""
+
+    def control_points(self, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+        """(N, K, 3) polyline control points on a garment with ``vertices`` (its rest or a deformed pose)."""
+        v = vertices[faces[self.face]]
+        root = np.einsum("nk,nkd->nd", self.bary, v)
+        e1 = v[:, 1] - v[:, 0]
+        n = np.cross(e1, v[:, 2] - v[:, 0])
+        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-20)
+        t = e1 / np.maximum(np.linalg.norm(e1, axis=1, keepdims=True), 1e-20)
+        b = np.cross(n, t)
+        frame = np.stack([t, b, n], axis=1)  # (N, 3, 3) rows: tangent, bitangent, normal
+        steps = np.einsum("nsk,nkd->nsd", self.direction, frame) * (self.length / self.direction.shape[1])
+        return np.concatenate([root[:, None], root[:, None] + np.cumsum(steps, axis=1)], axis=1)
+
+
+def make_fibres(fabric: Fabric, garment: Mesh, material: Material, seed: int, scale: float = 1.0) -> Fibres | None:
+    """Fibres of ``fabric`` scattered uniformly over ``garment`` (``scale`` multiplies the density);
+    None for fabrics without fibres. Each fibre leaves the surface steeply and curls over."""
+    count = int(round(fabric.fibre_density * scale * garment.face_areas().sum()))
+    if count == 0:
+        return None
+    rng = np.random.default_rng(seed)
+    areas = garment.face_areas()
+    face = rng.choice(len(areas), size=count, p=areas / areas.sum())
+    r1, r2 = rng.random(count), rng.random(count)
+    s = np.sqrt(r1)
+    bary = np.stack([1 - s, s * (1 - r2), s * r2], axis=1)
+    phi = rng.uniform(0, 2 * np.pi, count)
+    tilt = np.stack([rng.uniform(0.3, 0.7, count), rng.uniform(0.9, 1.4, count)], axis=1)  # rad from normal
+    direction = np.stack([np.sin(tilt) * np.cos(phi)[:, None], np.sin(tilt) * np.sin(phi)[:, None],
+                          np.cos(tilt)], axis=-1)
+    color = np.asarray(material.base_color, np.float64).reshape(-1, 3).mean(axis=0) * 1.1
+    return Fibres(face, bary, direction, fabric.fibre_length, fabric.fibre_radius, np.clip(color, 0, 1))

@@ -1,0 +1,130 @@
+"""``pgc synth``: the whole synthetic capture, from body to files on disk.
+
+body -> garment -> fabric (textures, normal map, fibres) -> dome cameras -> per view: path-traced colour
+(8-bit sRGB PNG, and the float linear image as the extra layer 'linear'), ray-cast mask / segmentation /
+albedo / depth, empty-dome background -> capture folder (written with
+:func:`pgc.io.capture.write_capture`) + ``ground_truth/`` + ``contact_sheet.png``.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from pgc.errors import PGCDataError
+from pgc.events import Reporter
+from pgc.types import Capture, View
+
+
+@dataclass(frozen=True)
+class SynthPreset:
+    """Sizes and sample counts of a synthetic capture."""
+
+    views: int
+    resolution: int
+    """Image width and height, pixels."""
+    body_edge: float
+    """Body mesh edge length, metres."""
+    garment_edge: float
+    """Garment mesh edge length, metres."""
+    texture: int
+    """Texture size, texels square."""
+    spp: int
+    """Path-tracing samples per pixel (see docs/synth.md for the noise measurement behind it)."""
+    gt_samples: int
+    """Sub-pixel rays per axis for the ground-truth layers (mask coverage resolution 1 / gt_samples^2)."""
+    fibre_scale: float
+    """Multiplier of the fabric's fibre density."""
+    envmap_height: int = 64
+    sampler: str = "ldsampler"
+    """Mitsuba sampler: the low-discrepancy sampler halves the noise of 'independent' at equal spp
+    (benchmarks/bench_synth.py); its spp must be a power of 4."""
+
+
+PRESETS: dict[str, SynthPreset] = {
+    "tiny": SynthPreset(views=6, resolution=64, body_edge=0.04, garment_edge=0.04, texture=256, spp=16,
+                        gt_samples=2, fibre_scale=0.3, envmap_height=16),
+    "default": SynthPreset(views=32, resolution=256, body_edge=0.022, garment_edge=0.02, texture=1024, spp=64,
+                           gt_samples=4, fibre_scale=1.0),
+    "large": SynthPreset(views=64, resolution=1024, body_edge=0.015, garment_edge=0.012, texture=2048, spp=64,
+                         gt_samples=4, fibre_scale=2.0, envmap_height=256),
+}
+
+
+def get_preset(name: str, **overrides) -> SynthPreset:
+    if name not in PRESETS:
+        raise PGCDataError(f"unknown synth preset '{name}'; presets: {', '.join(PRESETS)}")
+    return replace(PRESETS[name], **{k: v for k, v in overrides.items() if v is not None})
+
+
+def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garment: str = "tshirt",
+             fabric: str = "cotton", seed: int = 0, looseness: float = 0.03,
+             reporter: Reporter | None = None) -> Capture:
+    """Generate a synthetic capture into ``out`` and return it (as written).
+
+    The same arguments give byte-identical files. ``preset``: a name of :data:`PRESETS` or a SynthPreset.
+    """
+    from pgc.io.capture import write_capture
+    from pgc.synth import fabrics, garments, rig
+    from pgc.synth.body import make_body
+    from pgc.synth.contact_sheet import write_contact_sheet
+    from pgc.synth.ground_truth import GroundTruth, shape_dict, write_ground_truth
+    from pgc.synth.motions import MOTIONS, motion_rotations
+    from pgc.synth.render import build_scene, ground_truth_layers, render_color
+
+    p = get_preset(preset) if isinstance(preset, str) else preset
+    if p.sampler == "ldsampler":  # it takes powers of 4 only: round up rather than let Mitsuba warn
+        p = replace(p, spp=int(4 ** np.ceil(np.log(max(p.spp, 1)) / np.log(4) - 1e-9)))
+    fab = fabrics.get_fabric(fabric)
+    reporter = reporter or Reporter.silent()
+    out = Path(out)
+
+    with reporter.stage("synth_geometry") as st:
+        body = make_body(edge_length=p.body_edge)
+        cloth = garments.make_garment(body, garment, looseness=looseness, resolution=p.garment_edge)
+        st.record(body_vertices=len(body.vertices), garment_vertices=len(cloth.vertices))
+    with reporter.stage("synth_fabric") as st:
+        material, normal_map = fabrics.make_material(fab, cloth, p.texture, seed)
+        fibres = fabrics.make_fibres(fab, cloth, material, seed, p.fibre_scale)
+        st.record(fibres=0 if fibres is None else len(fibres.face))
+
+    light = rig.capture_light()
+    height = body.shape.height
+    cameras = rig.dome_cameras(p.views, p.resolution, p.resolution, center=(0.0, 0.5 * height, 0.0),
+                               distance=1.55 * height, subject_radius=0.52 * height, seed=seed)
+    gt = GroundTruth(body.mesh(), cloth, material, light, normal_map, fibres)
+    geometry = gt.geometry()
+    scene, labels = build_scene(geometry, light)
+    empty, _ = build_scene(None, light)
+
+    views = []
+    with reporter.stage("synth_render", total=len(cameras), spp=p.spp) as st:
+        for i, cam in enumerate(cameras):
+            color, _ = render_color(scene, cam, p.spp, seed * 100003 + i, p.sampler)
+            background, _ = render_color(empty, cam, min(p.spp, 16), seed * 100003 + i, p.sampler)
+            layers = ground_truth_layers(scene, labels, geometry, cam, p.gt_samples)
+            views.append(View(cam, color, layers["mask"], layers["segmentation"], background,
+                              {"linear": color, "albedo": layers["albedo"], "depth": layers["depth"]}))
+            st.progress(i + 1)
+
+    metadata = {"generator": "pgc synth", "preset": asdict(p), "garment": garment, "fabric": fabric, "seed": seed,
+                "looseness": looseness, "ground_truth": "ground_truth/scene.json",
+                "body_shape": shape_dict(body.shape)}
+    capture = Capture(views, light=light, metadata=metadata)
+    with reporter.stage("synth_write"):
+        write_capture(out, capture)
+        envmaps = {k: rig.relight_envmap(p.envmap_height, k, seed) for k in ("sky", "studio")}
+        motions = {name: motion_rotations(name).astype(np.float32) for name in MOTIONS}
+        manifest = dict(metadata, light_radiance=light.radiance.tolist(), skin_albedo=list(gt.skin_albedo),
+                        integrator={"type": "path", "max_depth": 8, "rfilter": "box", "sampler": p.sampler,
+                                    "background_spp": min(p.spp, 16)},
+                        counts={"views": len(views), "body_vertices": len(body.vertices),
+                                "garment_vertices": len(cloth.vertices),
+                                "fibres": 0 if fibres is None else len(fibres.face)})
+        write_ground_truth(out, gt, body, motions, envmaps, manifest)
+        write_contact_sheet(out / "contact_sheet.png", views)
+    capture.root = str(out)
+    return capture

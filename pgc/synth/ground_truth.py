@@ -1,0 +1,140 @@
+"""The ground-truth folder of a synthetic capture (``OUT/ground_truth/``): write and read.
+
+Layout::
+
+    scene.json            manifest: preset, seed, garment, fabric, render settings, timings, file list
+    body.obj              body mesh in the capture A-pose (face label 1)
+    garment.obj           garment mesh with UVs (face label 2)
+    full.ply              body + garment in one mesh with per-face labels (what a reconstructor should find)
+    material.json         BRDF name and parameters (linear RGB), fabric preset
+    base_color.exr        base-colour texture (linear RGB, rows from v = 1 down to v = 0); base_color.png preview
+    normal_map.exr        tangent-space weave normal map, encoded (n + 1) / 2 (absent for flat fabrics)
+    fibres.npz            fibres: root face, barycentrics, local directions, length, radius, colour
+    light.json            the capture light (constant RGB radiance)
+    envmaps/<kind>.exr    environment maps for relighting ground truth
+    body_model.npz        skinned body: rest vertices, faces, joints, parents, weights, shape
+    motions.npz           local joint rotations (T, J, 3, 3) per motion at 30 fps (frame 0 = A-pose)
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from pgc.errors import PGCDataError
+from pgc.io import images as imgio
+from pgc.io.atomic import atomic_open, write_json
+from pgc.io.mesh import read_mesh, write_mesh
+from pgc.synth.body import BodyModel
+from pgc.synth.fabrics import Fibres
+from pgc.synth.render import SKIN_ALBEDO, SceneGeometry
+from pgc.synth.skeleton import BodyShape
+from pgc.types import Light, Material, Mesh
+
+GT_DIR = "ground_truth"
+
+
+@dataclass
+class GroundTruth:
+    """Everything needed to re-render the scene in new poses and lights."""
+
+    body: Mesh
+    garment: Mesh
+    material: Material
+    light: Light
+    normal_map: np.ndarray | None = None
+    fibres: Fibres | None = None
+    skin_albedo: tuple[float, float, float] = SKIN_ALBEDO
+    manifest: dict | None = None
+
+    def geometry(self, garment_vertices: np.ndarray | None = None, body_vertices: np.ndarray | None = None
+                 ) -> SceneGeometry:
+        """The scene at the given vertices (default: the capture pose)."""
+        g = self.garment if garment_vertices is None else Mesh(
+            garment_vertices, self.garment.faces, self.garment.uv, self.garment.face_uv, self.garment.face_labels,
+            self.garment.name)
+        bv = self.body.vertices if body_vertices is None else body_vertices
+        return SceneGeometry(np.asarray(bv, float), self.body.faces, g, self.material, self.normal_map,
+                             self.fibres, self.skin_albedo)
+
+
+def _save_npz(path: Path, **arrays: np.ndarray) -> None:
+    with atomic_open(path, "wb") as f:
+        np.savez(f, **arrays)
+
+
+def write_ground_truth(root: str | os.PathLike, gt: GroundTruth, body: BodyModel, motions: dict[str, np.ndarray],
+                       envmaps: dict[str, np.ndarray], manifest: dict) -> Path:
+    """Write the ground-truth folder under ``root`` and return its path."""
+    out = Path(root) / GT_DIR
+    out.mkdir(parents=True, exist_ok=True)
+    write_mesh(out / "body.obj", gt.body)
+    write_mesh(out / "garment.obj", gt.garment)
+    full = Mesh(np.concatenate([gt.body.vertices, gt.garment.vertices]),
+                np.concatenate([gt.body.faces, gt.garment.faces + len(gt.body.vertices)]),
+                face_labels=np.concatenate([gt.body.face_labels, gt.garment.face_labels]), name="full")
+    write_mesh(out / "full.ply", full)
+    params = {k: v for k, v in gt.material.params.items()}
+    write_json(out / "material.json", {"brdf": gt.material.brdf, "params": params,
+                                       "fabric": manifest.get("fabric"), "base_color": "base_color.exr",
+                                       "normal_map": None if gt.normal_map is None else "normal_map.exr",
+                                       "skin_albedo": list(gt.skin_albedo)})
+    imgio.write_exr(out / "base_color.exr", gt.material.base_color)
+    imgio.write_image(out / "base_color.png", gt.material.base_color)
+    if gt.normal_map is not None:
+        imgio.write_exr(out / "normal_map.exr", gt.normal_map)
+    if gt.fibres is not None:
+        f = gt.fibres
+        _save_npz(out / "fibres.npz", face=f.face, bary=f.bary, direction=f.direction, length=np.float64(f.length),
+                  radius=np.float64(f.radius), color=f.color)
+    write_json(out / "light.json", {"radiance": gt.light.radiance.tolist(), "rotation_deg": gt.light.rotation_deg})
+    for kind, env in envmaps.items():
+        imgio.write_exr(out / "envmaps" / f"{kind}.exr", env)
+    _save_npz(out / "body_model.npz", vertices=body.vertices, faces=body.faces, joints=body.joints,
+              parents=body.parents, weights=body.weights, shape=np.array([body.shape.height, body.shape.girth,
+                                                                          body.shape.shoulder_width]))
+    _save_npz(out / "motions.npz", **motions)
+    write_json(out / "scene.json", dict(manifest, files=sorted(str(p.relative_to(out)) for p in out.rglob("*")
+                                                                if p.is_file() and p.name != "scene.json")))
+    return out
+
+
+def read_ground_truth(root: str | os.PathLike) -> GroundTruth:
+    """Read the ground truth of a synthetic capture (``root`` is the capture folder or its ground_truth/)."""
+    root = Path(root)
+    gt_dir = root if (root / "scene.json").is_file() else root / GT_DIR
+    if not (gt_dir / "scene.json").is_file():
+        raise PGCDataError(f"{root}: no synthetic ground truth here (expected {GT_DIR}/scene.json); "
+                           "make one with 'pgc synth OUT'")
+    manifest = json.loads((gt_dir / "scene.json").read_text())
+    mat = json.loads((gt_dir / "material.json").read_text())
+    material = Material(mat["brdf"], mat["params"], imgio.read_exr(gt_dir / mat["base_color"]))
+    normal_map = imgio.read_exr(gt_dir / mat["normal_map"]) if mat.get("normal_map") else None
+    fibres = None
+    if (gt_dir / "fibres.npz").is_file():
+        z = np.load(gt_dir / "fibres.npz")
+        fibres = Fibres(z["face"], z["bary"], z["direction"], float(z["length"]), float(z["radius"]), z["color"])
+    light_doc = json.loads((gt_dir / "light.json").read_text())
+    return GroundTruth(read_mesh(gt_dir / "body.obj"), read_mesh(gt_dir / "garment.obj"), material,
+                       Light(np.asarray(light_doc["radiance"]), rotation_deg=light_doc.get("rotation_deg", 0.0)),
+                       normal_map, fibres, tuple(mat.get("skin_albedo", SKIN_ALBEDO)), manifest)
+
+
+def read_body_model(root: str | os.PathLike) -> BodyModel:
+    """The skinned body stored with a synthetic capture."""
+    root = Path(root)
+    gt_dir = root if (root / "body_model.npz").is_file() else root / GT_DIR
+    z = np.load(gt_dir / "body_model.npz")
+    h, g, sw = (float(x) for x in z["shape"])
+    from pgc.synth.body import body_parts
+
+    shape = BodyShape(h, g, sw)
+    return BodyModel(z["vertices"], z["faces"], z["joints"], z["parents"], z["weights"], shape, body_parts(shape))
+
+
+def shape_dict(shape: BodyShape) -> dict:
+    return asdict(shape)

@@ -1,0 +1,138 @@
+"""Shared fixtures: small, seeded data built in memory (no files outside tmp_path)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pgc.types import Camera, Capture, Light, Mesh, View
+
+
+def look_at_camera(center, target, width: int, height: int, focal: float, name: str) -> Camera:
+    """An OpenCV camera at ``center`` looking at ``target`` with world +Y up."""
+    center, target = np.asarray(center, float), np.asarray(target, float)
+    forward = target - center
+    forward /= np.linalg.norm(forward)
+    right = np.cross(forward, [0.0, 1.0, 0.0])
+    right /= np.linalg.norm(right)
+    down = np.cross(forward, right)
+    R = np.stack([right, down, forward])
+    K = np.array([[focal, 0, width / 2 + 0.25], [0, focal * 1.01, height / 2 - 0.5], [0, 0, 1]])
+    return Camera(K=K, R=R, t=-R @ center, width=width, height=height, name=name)
+
+
+def make_capture(n_views: int = 3, width: int = 12, height: int = 8, seed: int = 0,
+                 layers: bool = True) -> Capture:
+    """A random capture on a ring of cameras; with ``layers`` every optional layer is filled."""
+    rng = np.random.default_rng(seed)
+    views = []
+    for i in range(n_views):
+        a = 2 * np.pi * i / n_views
+        cam = look_at_camera([3 * np.sin(a), 0.5, 3 * np.cos(a)], [0, 0.2, 0], width, height, 20.0, f"cam{i:02d}")
+        kw = {}
+        if layers:
+            kw = dict(mask=rng.random((height, width)).astype(np.float32),
+                      segmentation=rng.integers(0, 3, (height, width)).astype(np.uint8),
+                      background=rng.random((height, width, 3)).astype(np.float32),
+                      extras={"albedo": rng.random((height, width, 3)).astype(np.float32),
+                              "depth": (1 + 3 * rng.random((height, width))).astype(np.float32)})
+        views.append(View(camera=cam, image=rng.random((height, width, 3)).astype(np.float32), **kw))
+    light = Light(radiance=np.array([1.5, 1.25, 1.0]), envmap=rng.random((4, 8, 3)).astype(np.float32),
+                  rotation_deg=30.0) if layers else None
+    return Capture(views=views, labels={0: "background", 1: "body", 2: "tshirt"}, light=light,
+                   metadata={"generator": "test", "seed": seed})
+
+
+def seamed_cube() -> Mesh:
+    """A unit cube (8 positions, 12 triangles) with a UV atlas of 6 separate squares (24 texture vertices):
+    every cube edge is a UV seam."""
+    v = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=float)
+    quads = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
+    faces, face_uv, uv = [], [], []
+    for q, quad in enumerate(quads):
+        u0 = q / 6
+        uv += [[u0, 0], [u0 + 1 / 6, 0], [u0 + 1 / 6, 1], [u0, 1]]
+        t = [4 * q + i for i in range(4)]
+        faces += [[quad[0], quad[1], quad[2]], [quad[0], quad[2], quad[3]]]
+        face_uv += [[t[0], t[1], t[2]], [t[0], t[2], t[3]]]
+    labels = np.array([2, 2, 1, 1, 2, 1, 0, 0, 1, 2, 2, 1])
+    return Mesh(v + 1e-9 * np.arange(24).reshape(8, 3), np.array(faces), np.array(uv), np.array(face_uv),
+                labels, name="cube")
+
+
+@pytest.fixture
+def small_capture() -> Capture:
+    return make_capture()
+
+
+FAKE_PLUGINS = {
+    "fakeplug_ok": '''
+from pgc.registry import ImplementationSpec, hookimpl
+from pgc.roles.filter import Filter
+import numpy as np
+
+
+class Identity(Filter):
+    """Low-pass that returns the image (a trivially conformant filter)."""
+
+    def lowpass(self, image, alpha, kernel_size):
+        return np.asarray(image, dtype=np.float32).copy()
+
+
+@hookimpl
+def pgc_register_implementations():
+    return [ImplementationSpec(role="filter", name="tmp-ok", factory="fakeplug_ok:Identity",
+                               description="identity filter from a temporary distribution", requires=("numpy",)),
+            ImplementationSpec(role="filter", name="tmp-badfactory", factory="fakeplug_ok_impl_gone:X",
+                               description="factory module that fails on import")]
+''',
+    "fakeplug_missing": '''
+from pgc.registry import ImplementationSpec, hookimpl
+
+
+@hookimpl
+def pgc_register_implementations():
+    return [ImplementationSpec(role="filter", name="tmp-missing", factory="fakeplug_missing:Nope",
+                               description="needs a module that is not installed",
+                               requires=("numpy", "pgc_module_that_does_not_exist"), extra="nonexistent")]
+''',
+    "fakeplug_broken": '''
+raise ImportError("fakeplug_broken needs libfoo.so.3")
+''',
+    "fakeplug_dup": '''
+from pgc.registry import ImplementationSpec, hookimpl
+
+
+@hookimpl
+def pgc_register_implementations():
+    return [ImplementationSpec(role="filter", name="tmp-ok", factory="fakeplug_ok:Identity",
+                               description="a second 'tmp-ok': a conflict")]
+''',
+}
+FAKE_DIST = "tmp-pgc-plugins"
+FAKE_ENTRY_POINTS = {"tmpok": "fakeplug_ok", "tmpmissing": "fakeplug_missing", "tmpbroken": "fakeplug_broken",
+                     "tmpzdup": "fakeplug_dup"}
+"""Entry-point name -> module; plugins load in name order, so the duplicate comes after the original."""
+
+
+@pytest.fixture
+def fake_distribution(tmp_path, monkeypatch):
+    """A real installed distribution in a temporary folder on sys.path (a *.dist-info with entry points):
+    one good plugin, one with a missing dependency, one that raises on import, one duplicate.
+    Returns the folder (put it on PYTHONPATH for subprocesses)."""
+    import importlib
+    import sys
+
+    site = tmp_path / "site"
+    site.mkdir()
+    for module, source in FAKE_PLUGINS.items():
+        (site / f"{module}.py").write_text(source)
+    info = site / "tmp_pgc_plugins-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {FAKE_DIST}\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[pgc]\n" + "".join(f"{e} = {m}\n" for e, m in FAKE_ENTRY_POINTS.items()))
+    monkeypatch.syspath_prepend(str(site))
+    importlib.invalidate_caches()
+    yield site
+    for module in FAKE_PLUGINS:
+        sys.modules.pop(module, None)

@@ -1,0 +1,107 @@
+"""The built-in (and every installed) implementation runs its role's conformance suite.
+
+Implementations come from the installed entry points; an unavailable one (missing extra) is not
+collected. A role with no available implementation shows as a skip with pytest's "empty parameter set";
+an implementation that cannot be built from its default options (a required file path, a missing model
+file) is skipped with the builder's message, so both stay visible in the summary.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from pgc.errors import PGCConfigError, PGCDataError
+from pgc.registry import Registry
+from pgc.testing.conformance import (AlbedoEstimatorConformance, BRDFConformance, FilterConformance,
+                                     MetricConformance, PBRRendererConformance, ReconstructorConformance,
+                                     SimulatorConformance, SplatRendererConformance)
+
+REGISTRY = Registry.discover()
+
+KNOWN_DEVIATIONS = {
+    ("brdf", "disney", "test_white_furnace"):
+        "Disney diffuse retro-reflection plus the additive Disney sheen reflect more than they receive "
+        "(measured up to 1.85 at cos_o = 0.05 with sheen = 5); the brdf contract says at most 1",
+    ("brdf", "pgc-sheen", "test_white_furnace"):
+        "the Disney diffuse base exceeds 1 at grazing view with roughness 1 (measured 1.13 at cos_o = 0.05)",
+}
+"""Contract violations of built-ins, reported (xfail, non-strict: some parameter cases pass) until the owner
+fixes the model or declares its bound as ``furnace_limit``."""
+
+
+def _available(role: str) -> list:
+    return [pytest.param(impl, id=impl.name) for impl in REGISTRY.list(role) if impl.available]
+
+
+@pytest.fixture(scope="module")
+def built():
+    """Implementations are built once per module (some compile kernels on first use)."""
+    cache: dict = {}
+
+    def get(impl, request):
+        key = (impl.role, impl.name)
+        if key not in cache:
+            try:
+                cache[key] = impl.create()
+            except (PGCConfigError, PGCDataError) as exc:  # e.g. a required option such as a file path
+                cache[key] = exc
+        if isinstance(cache[key], Exception):
+            pytest.skip(f"{impl.role} '{impl.name}' cannot be built with its default options: {cache[key]}")
+        reason = KNOWN_DEVIATIONS.get((impl.role, impl.name, request.node.originalname))
+        if reason and not hasattr(cache[key], "furnace_limit"):
+            request.applymarker(pytest.mark.xfail(reason=f"{impl.role} '{impl.name}': {reason}", strict=False))
+        return cache[key]
+
+    return get
+
+
+class TestFilterImplementations(FilterConformance):
+    @pytest.fixture(params=_available("filter"))
+    def implementation(self, request, built):
+        return built(request.param, request)
+
+
+class TestMetricImplementations(MetricConformance):
+    @pytest.fixture(params=_available("metric"))
+    def implementation(self, request, built):
+        return built(request.param, request)
+
+
+class TestBRDFImplementations(BRDFConformance):
+    @pytest.fixture(params=_available("brdf"))
+    def implementation(self, request, built):
+        return built(request.param, request)
+
+
+@pytest.mark.slow
+class TestSimulatorImplementations(SimulatorConformance):
+    @pytest.fixture(params=_available("simulator"))
+    def implementation(self, request, built):
+        return built(request.param, request)
+
+
+@pytest.mark.slow
+class TestSplatRendererImplementations(SplatRendererConformance):
+    @pytest.fixture(params=_available("splat_renderer"))
+    def implementation(self, request, built):
+        return built(request.param, request)
+
+
+class TestAlbedoEstimatorImplementations(AlbedoEstimatorConformance):
+    @pytest.fixture(params=_available("albedo_estimator"))
+    def implementation(self, request, built):
+        return built(request.param, request)
+
+
+@pytest.mark.slow
+class TestPBRRendererImplementations(PBRRendererConformance):
+    @pytest.fixture(params=_available("pbr_renderer"))
+    def implementation(self, request, built):
+        return built(request.param, request)
+
+
+@pytest.mark.slow
+class TestReconstructorImplementations(ReconstructorConformance):
+    @pytest.fixture(params=_available("reconstructor"))
+    def implementation(self, request, built):
+        return built(request.param, request)

@@ -1,0 +1,109 @@
+"""The torch splat fit on a small scene made here (the test body of pgc.geometry.testscene): it learns,
+keeps only the garment's Gaussians, chooses SH degree and count from held-out views, resumes from a checkpoint."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pgc.errors import PGCDataError
+from pgc.events import Reporter
+from pgc.geometry.testscene import body_mesh, make_capture
+from pgc.pipeline.settings_splats import FitSplatsSettings
+
+torch = pytest.importorskip("torch")
+
+from pgc.splats.fitplan import initial_count  # noqa: E402
+from pgc_torch.splat.fit import heldout_psnr  # noqa: E402
+from pgc_torch.splat.renderer import TorchSplatRenderer  # noqa: E402
+
+FAST = {"iterations": 40, "gaussians_per_pixel": 0.5, "holdout_every": 4, "log_every": 10}
+
+
+@pytest.fixture(scope="module")
+def scene():
+    capture, mesh = make_capture(body_mesh(0.04), views=8, size=40)
+    return capture, mesh
+
+
+class Recorder:
+    def __init__(self, stop_at: int | None = None) -> None:
+        self.progress: list[tuple[int, dict]] = []
+        self.finished: dict = {}
+        self.stop_at = stop_at
+
+    def pgc_stage_started(self, stage, info):
+        pass
+
+    def pgc_stage_progress(self, stage, done, total, figures):
+        self.progress.append((done, figures))
+        if self.stop_at is not None and done >= self.stop_at:
+            raise KeyboardInterrupt  # a crash in the middle of the fit
+
+    def pgc_stage_finished(self, stage, seconds, figures):
+        self.finished = figures
+
+
+@pytest.mark.slow
+def test_fit_learns_keeps_garment_and_selects_on_heldout_views(scene):
+    capture, mesh = scene
+    renderer = TorchSplatRenderer({"threads": 2})
+    rec = Recorder()
+    fit = renderer.fit(capture, mesh, FAST, Reporter(rec))
+    g, f = fit.gaussians, fit.figures
+    assert f["iterations"] == 40 and f["initial_gaussians"] == initial_count(capture, FitSplatsSettings(**FAST))
+    losses = [fig["loss"] for _, fig in rec.progress if "loss" in fig]
+    assert losses[-1] < 0.7 * losses[0]
+    assert f["psnr_heldout"] >= f["psnr_heldout_full"] - FitSplatsSettings().margin_db - 1e-9
+    assert f["psnr_heldout"] > 20.0
+    assert np.all(mesh.face_labels[g.parent] == 2) and len(g) == f["gaussians"] > 0
+    assert g.sh_degree == f["sh_degree"] and set(f["sh_selection"]) == {str(d) for d in range(4)}
+    assert [p["iteration"] for p in f["time_to_psnr"]][-1] == 40
+    assert all(np.all(np.isfinite(getattr(g, n))) for n in ("means", "quats", "log_scales", "opacity_logits", "sh"))
+
+
+@pytest.mark.slow
+def test_fit_resumes_from_checkpoint_after_a_crash(scene, tmp_path):
+    capture, mesh = scene
+    settings = dict(FAST, iterations=20, checkpoint_every=10, log_every=5, keep="all", select_count=False,
+                    select_sh=False, prune_weight=0.0, checkpoint_dir=str(tmp_path))
+    renderer = TorchSplatRenderer({"threads": 1})
+    straight = renderer.fit(capture, mesh, dict(settings, checkpoint_dir=None)).gaussians
+    with pytest.raises(KeyboardInterrupt):
+        renderer.fit(capture, mesh, settings, Reporter(Recorder(stop_at=15)))
+    assert (tmp_path / "fit_splats.pt").exists()
+    rec = Recorder()
+    resumed = renderer.fit(capture, mesh, settings, Reporter(rec)).gaussians
+    assert rec.progress[0][0] > 10  # started after the checkpoint of step 10, not from 0
+    for name in ("means", "quats", "log_scales", "opacity_logits", "sh"):
+        np.testing.assert_allclose(getattr(resumed, name), getattr(straight, name), atol=2e-4)
+
+
+def test_unlabelled_mesh_is_a_clear_error(scene):
+    capture, mesh = scene
+    unlabelled = type(mesh)(mesh.vertices, mesh.faces, name="scan")
+    with pytest.raises(PGCDataError, match="keep = 'all'"):
+        TorchSplatRenderer().fit(capture, unlabelled, FAST)
+
+
+def test_heldout_psnr_of_the_ground_truth_layout_is_high(scene):
+    """Sanity of the evaluation path: Gaussians that exactly reproduce an image give a high PSNR on it."""
+    from pgc_torch.splat import fit as F
+
+    capture, mesh = scene
+    views = F._prepare(capture, 0.03)
+    model = F._Model(F.sample_on_mesh(mesh, 500, np.random.default_rng(0), 0), mesh)
+    with torch.no_grad():
+        model.params["opacity_logits"].fill_(-30.0)  # invisible: the render is the background
+    for v in views:
+        v.image = v.background.numpy()
+    assert heldout_psnr(TorchSplatRenderer(), model, views, 0) > 60
+
+
+def test_backfacing_faces_are_those_no_camera_sees_from_the_front():
+    from pgc.types import Camera, Mesh
+    from pgc.splats.fitplan import backfacing_faces as _backfacing_faces
+
+    mesh = Mesh(np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2], [0, 2, 1]]))  # normals +z, -z
+    front = Camera(np.eye(3), np.diag([1.0, -1.0, -1.0]), [0, 0, 5.0], 4, 4)  # at z = +5 looking down -z
+    np.testing.assert_array_equal(_backfacing_faces(mesh, [front]), [False, True])
