@@ -146,6 +146,7 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
                              "x naive": f"{naive_s / seconds:.1f}", "max err": f"{err:.1e}",
                              "garment max/mean err": f"{garment.max():.1e}/{garment.mean():.1e}",
                              "peak MB": f"{peak:.0f}"})
+                print(" ".join(f"{key}={value}" for key, value in rows[-1].items()), flush=True)  # progress
     print_table(rows, ["size", "k", "backend", "ms", "x naive", "max err", "garment max/mean err", "peak MB"])
     Path(args.out).write_text(json.dumps(records, indent=1) + "\n")
     print(f"wrote {len(records)} records to {args.out}")

@@ -31,7 +31,7 @@ def pair(size: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """A textured linear image and a blurred, noisy copy."""
     from scipy.ndimage import gaussian_filter
 
-    from pgc.io.images import linear_to_srgb, srgb_to_linear
+    from pgc.io.images import srgb_to_linear
 
     rng = np.random.default_rng(seed)
     srgb = sum(gaussian_filter(rng.standard_normal((size, size, 3)), (s, s, 0)) * s for s in (0.7, 3, 12))

@@ -56,6 +56,19 @@ def timed(fn: Callable[[], Any], repeats: int) -> tuple[float, Any]:
     return statistics.median(times), out
 
 
+def render_job(renderer: Any, space: str, mesh: Any, material: Material, light: Light, camera: Any,
+               size: int) -> Callable[[], tuple[np.ndarray, np.ndarray]]:
+    """A call rendering in ``space`` ("screen" or "texture"): (radiance, mask of fully covered samples)."""
+    def job() -> tuple[np.ndarray, np.ndarray]:
+        if space == "screen":
+            out = renderer.render(mesh, material, light, camera)
+            return out.color, out.alpha > 0.999
+        tex, cover = renderer.render_texture(mesh, material, light, camera, (size, size))
+        return tex, cover > 0.99
+
+    return job
+
+
 def errors(pred: np.ndarray, ref: np.ndarray, mask: np.ndarray) -> dict[str, float]:
     d = pred[mask] - ref[mask]
     return {"rel_mae": float(np.abs(d).mean() / max(np.abs(ref[mask]).mean(), 1e-12)),
@@ -85,11 +98,8 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     for light_name, light in lights.items():
         for space in ("screen", "texture"):
             def run(name: str, opts: dict[str, Any]) -> Callable[[], tuple[np.ndarray, np.ndarray]]:
-                renderer = reg.create("pbr_renderer", name, opts)
-                if space == "screen":
-                    return lambda: (lambda o: (o.color, o.alpha > 0.999))(renderer.render(mesh, material, light, camera))
-                res = (args.size, args.size)
-                return lambda: (lambda o: (o[0], o[1] > 0.99))(renderer.render_texture(mesh, material, light, camera, res))
+                return render_job(reg.create("pbr_renderer", name, opts), space, mesh, material, light, camera,
+                                  args.size)
 
             ref_seconds, (ref_img, ref_mask) = timed(run("mitsuba", {"spp": args.ref_spp}), 1)
             for name, opts in settings:

@@ -139,6 +139,7 @@ def renderer_benchmarks(args, reg, env) -> list[dict[str, Any]]:
                             "settings": {"size": camera.width, "gaussians": len(world.means)}, "seconds": fwd,
                             "seconds_forward_backward": bwd, "peak_mb": round(max(peak, peak_b), 1),
                             "errors": errors, "versions": env})
+            print(f"  {label} {name}: forward {1e3 * fwd:.0f} ms, forward+backward {1e3 * bwd:.0f} ms", flush=True)
             rows.append({"scene": label, "backend": name, "fwd ms": f"{1e3 * fwd:.0f}", "fwd+bwd ms": f"{1e3 * bwd:.0f}",
                          "fwd / first": f"{errors['fwd_ratio_to_first']:.2f}",
                          "fwd+bwd / first": f"{errors['fwdbwd_ratio_to_first']:.2f}",

@@ -11,7 +11,7 @@ import sys
 
 from pgc.errors import PGCError
 
-COMMANDS = ("plugins", "config", "synth", "reconstruct", "animate", "render", "eval", "bench", "demo")
+COMMANDS = ("plugins", "config", "synth", "calibrate", "reconstruct", "animate", "render", "eval", "bench", "demo")
 
 EPILOG = """\
 typical session:

@@ -111,6 +111,13 @@ class RunConfig:
     def stage(self, name: str) -> Any:
         return self.stages[name]
 
+    def role_key(self, role: str) -> dict[str, Any]:
+        """What of the configuration decides a role's results (its implementation and options), for
+        cache keys."""
+        choice = self.roles[role]
+        opts = choice.options.get(choice.name)
+        return {"role": role, "name": choice.name, "options": None if opts is None else opts.model_dump(mode="json")}
+
     def to_dict(self) -> dict[str, Any]:
         """The resolved configuration with every default, in the TOML layout (and the choices made)."""
         out: dict[str, Any] = {"plugins": {"block": list(self.block)}}

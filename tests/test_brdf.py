@@ -160,9 +160,11 @@ def test_torch_gradients_match_finite_differences() -> None:
             torch.tensor([0.7, 0.5, 0.3], dtype=torch.float64, requires_grad=True),
             torch.tensor(0.4, dtype=torch.float64, requires_grad=True), base.requires_grad_())
     assert torch.autograd.gradcheck(f, args, eps=1e-6, atol=1e-6, rtol=1e-4)
-    d = lambda r, t, s: EVALUATORS["disney"](ops, L, V, base.detach(), {"roughness": r, "sheen": s, "sheen_tint": t})  # noqa: E731
-    assert torch.autograd.gradcheck(d, tuple(torch.tensor(v, dtype=torch.float64, requires_grad=True)
-                                             for v in (0.3, 0.5, 1.2)), eps=1e-6, atol=1e-6, rtol=1e-4)
+    def disney(r, t, s):
+        return EVALUATORS["disney"](ops, L, V, base.detach(), {"roughness": r, "sheen": s, "sheen_tint": t})
+
+    assert torch.autograd.gradcheck(disney, tuple(torch.tensor(v, dtype=torch.float64, requires_grad=True)
+                                                  for v in (0.3, 0.5, 1.2)), eps=1e-6, atol=1e-6, rtol=1e-4)
 
 
 HARD_L = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.6, 0.0, -0.8], [1.0, 0.0, 1e-7], [0.0, 1.0, 1e-12],

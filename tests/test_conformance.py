@@ -18,17 +18,6 @@ from pgc.testing.conformance import (AlbedoEstimatorConformance, BRDFConformance
 
 REGISTRY = Registry.discover()
 
-KNOWN_DEVIATIONS = {
-    ("brdf", "disney", "test_white_furnace"):
-        "Disney diffuse retro-reflection plus the additive Disney sheen reflect more than they receive "
-        "(measured up to 1.85 at cos_o = 0.05 with sheen = 5); the brdf contract says at most 1",
-    ("brdf", "pgc-sheen", "test_white_furnace"):
-        "the Disney diffuse base exceeds 1 at grazing view with roughness 1 (measured 1.13 at cos_o = 0.05)",
-}
-"""Contract violations of built-ins, reported (xfail, non-strict: some parameter cases pass) until the owner
-fixes the model or declares its bound as ``furnace_limit``."""
-
-
 def _available(role: str) -> list:
     return [pytest.param(impl, id=impl.name) for impl in REGISTRY.list(role) if impl.available]
 
@@ -38,7 +27,7 @@ def built():
     """Implementations are built once per module (some compile kernels on first use)."""
     cache: dict = {}
 
-    def get(impl, request):
+    def get(impl):
         key = (impl.role, impl.name)
         if key not in cache:
             try:
@@ -47,9 +36,6 @@ def built():
                 cache[key] = exc
         if isinstance(cache[key], Exception):
             pytest.skip(f"{impl.role} '{impl.name}' cannot be built with its default options: {cache[key]}")
-        reason = KNOWN_DEVIATIONS.get((impl.role, impl.name, request.node.originalname))
-        if reason and not hasattr(cache[key], "furnace_limit"):
-            request.applymarker(pytest.mark.xfail(reason=f"{impl.role} '{impl.name}': {reason}", strict=False))
         return cache[key]
 
     return get
@@ -58,50 +44,50 @@ def built():
 class TestFilterImplementations(FilterConformance):
     @pytest.fixture(params=_available("filter"))
     def implementation(self, request, built):
-        return built(request.param, request)
+        return built(request.param)
 
 
 class TestMetricImplementations(MetricConformance):
     @pytest.fixture(params=_available("metric"))
     def implementation(self, request, built):
-        return built(request.param, request)
+        return built(request.param)
 
 
 class TestBRDFImplementations(BRDFConformance):
     @pytest.fixture(params=_available("brdf"))
     def implementation(self, request, built):
-        return built(request.param, request)
+        return built(request.param)
 
 
 @pytest.mark.slow
 class TestSimulatorImplementations(SimulatorConformance):
     @pytest.fixture(params=_available("simulator"))
     def implementation(self, request, built):
-        return built(request.param, request)
+        return built(request.param)
 
 
 @pytest.mark.slow
 class TestSplatRendererImplementations(SplatRendererConformance):
     @pytest.fixture(params=_available("splat_renderer"))
     def implementation(self, request, built):
-        return built(request.param, request)
+        return built(request.param)
 
 
 class TestAlbedoEstimatorImplementations(AlbedoEstimatorConformance):
     @pytest.fixture(params=_available("albedo_estimator"))
     def implementation(self, request, built):
-        return built(request.param, request)
+        return built(request.param)
 
 
 @pytest.mark.slow
 class TestPBRRendererImplementations(PBRRendererConformance):
     @pytest.fixture(params=_available("pbr_renderer"))
     def implementation(self, request, built):
-        return built(request.param, request)
+        return built(request.param)
 
 
 @pytest.mark.slow
 class TestReconstructorImplementations(ReconstructorConformance):
     @pytest.fixture(params=_available("reconstructor"))
     def implementation(self, request, built):
-        return built(request.param, request)
+        return built(request.param)

@@ -99,3 +99,17 @@ def test_closest_point_on_triangles_matches_dense_sampling():
 def test_chamfer_of_a_mesh_with_itself_is_zero():
     s = _sphere(0.5)
     assert metrics.compare_meshes(s, s, samples=5000)["chamfer_mean"] < 1e-9
+
+
+def test_visible_faces_counts_cameras():
+    from pgc.geometry.testscene import look_at
+
+    # two quads at z = 2: the left one in front of both cameras, the right one only in front of camera b
+    v = np.array([[-0.5, -0.5, 2], [0.5, -0.5, 2], [0.5, 0.5, 2], [-0.5, 0.5, 2],
+                  [9.5, -0.5, 2], [10.5, -0.5, 2], [10.5, 0.5, 2], [9.5, 0.5, 2]], float)
+    f = np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]])
+    a = look_at([0, 0, 0], [0, 0, 1], 32, 32, 60.0, "a")
+    b = look_at([5, 0, -8], [5, 0, 2], 32, 32, 80.0, "b")
+    m = Mesh(v, f)
+    np.testing.assert_array_equal(metrics.visible_faces(m, [a, b]), [True, True, True, True])
+    np.testing.assert_array_equal(metrics.visible_faces(m, [a, b], min_views=2), [True, True, False, False])

@@ -8,7 +8,6 @@ import io
 import json
 import os
 import pickle
-import sys
 from pathlib import Path
 
 import numpy as np

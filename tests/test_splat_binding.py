@@ -132,14 +132,14 @@ def test_quaternion_helpers():
 
 
 def test_sh_basis_is_orthonormal_and_dc_roundtrip():
-    n = 200000  # Fibonacci sphere quadrature
+    n = 50000  # Fibonacci sphere quadrature
     i = np.arange(n) + 0.5
     z = 1 - 2 * i / n
     phi = np.pi * (1 + 5 ** 0.5) * i
     d = np.stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z], -1)
     B = sh_basis(d, 3)
     gram = 4 * np.pi * B.T @ B / n
-    np.testing.assert_allclose(gram, np.eye(16), atol=2e-4)
+    np.testing.assert_allclose(gram, np.eye(16), atol=1e-3)
     assert sh_basis(d[:1], 0)[0, 0] == SH_C0
     c = np.array([0.2, 0.5, 0.9])
     np.testing.assert_allclose(sh_to_rgb_dc(rgb_to_sh_dc(c)), c)

@@ -95,10 +95,14 @@ def test_fit_converges_and_resumes(tmp_path):
     assert losses[-1] < 0.5 * losses[0]
     train_psnr = [e["psnr_train_view"] for e in progress.events if "psnr_train_view" in e]
     assert max(train_psnr[-3:]) > 27.0 and train_psnr[0] < 22.0
-    g = fit.gaussians
-    assert 0 < len(g) < 400 and np.all(np.isin(mesh.face_labels[g.parent], [2]))  # garment only
-    f = fit.figures
+    g, f = fit.gaussians, fit.figures
+    assert np.all(np.isin(mesh.face_labels[g.parent], [2]))  # garment only
+    assert 0 < len(g) == f["gaussians"] < f["gaussians_selected"]
+    assert f["gaussians_selected"] <= f["initial_gaussians"] - f["pruned_no_contribution"]
+    assert f["pruned_no_contribution"] > 0
     assert f["iterations"] == 120 and f["sh_degree"] in (0, 1, 2, 3) and np.isfinite(f["psnr_heldout"])
+    assert f["lr_factor"] == 10.0  # lr_scale = 0: sqrt(30000 / 120) clamped to 10 (fitplan.auto_lr_factor)
+    assert f["chunk_capacity_changes"] == 2  # one capacity per image size (coarse half resolution, full), no growth
     # the full model renders the training views well (PSNR against the images, sRGB)
     all_fit = renderer.fit(capture, mesh, dict(settings, keep="all", select_sh=False, prune_weight=0.0,
                                                checkpoint_dir=None))
@@ -111,3 +115,101 @@ def test_fit_converges_and_resumes(tmp_path):
     assert not [e for e in resumed.events if "loss" in e]
     np.testing.assert_array_equal(again.gaussians.means, fit.gaussians.means)
     np.testing.assert_array_equal(again.gaussians.sh, fit.gaussians.sh)
+
+
+def test_contour_band_matches_opencv_morphology():
+    cv2 = pytest.importorskip("cv2")
+    from pgc.splats.fitplan import outside_band
+
+    rng = np.random.default_rng(0)
+    for band in (0.03, 0.1):
+        m = (rng.random((64, 80)) < 0.1).astype(np.float32)
+        m[20:50, 10:50] = 1.0
+        m[:5] = 1.0                                   # touches the border: no erosion from outside
+        side = max(1, int(round(band * 64)) | 1)
+        k, mm = np.ones((side, side), np.uint8), (m > 0.5).astype(np.uint8)
+        expected = (cv2.dilate(mm, k) == cv2.erode(mm, k)).astype(np.float32)
+        np.testing.assert_array_equal(outside_band(m, band), expected)
+
+
+def test_schedules_follow_the_fraction_of_the_fit():
+    from pgc.pipeline.settings_splats import FitSplatsSettings
+    from pgc.splats.fitplan import finished, position_lr_at, progress, sh_degree_at
+
+    s = FitSplatsSettings()
+    assert position_lr_at(0.0, s) == pytest.approx(s.lr_position)
+    assert position_lr_at(1.0, s) == pytest.approx(s.lr_position_final)
+    assert position_lr_at(0.5, s) == pytest.approx(np.sqrt(s.lr_position * s.lr_position_final))
+    assert [sh_degree_at(i / 30000, s) for i in (0, 499, 500, 1000, 1500, 29999)] == [0, 0, 1, 2, 3, 3]
+    assert [sh_degree_at(i / 300, s) for i in (0, 4, 5, 10, 15)] == [0, 0, 1, 2, 3]  # interval scaled to 5 steps
+    fixed = FitSplatsSettings(iterations=200, max_iterations=150)
+    assert progress(50, 1e6, fixed) == 0.25 and not finished(149, 0.745, fixed) and finished(150, 0.75, fixed)
+    auto = FitSplatsSettings(time_budget_s=10.0)
+    assert progress(7, 5.0, auto) == 0.5 and progress(7, 50.0, auto) == 1.0
+    assert not finished(10, 0.99, auto) and finished(10, 1.0, auto) and finished(30000, 0.2, auto)
+
+
+def test_learning_rates_scale_and_slow_the_higher_sh_bands():
+    from pgc.pipeline.settings_splats import FitSplatsSettings
+    from pgc.splats.fitplan import REST_LR_FACTOR, position_lr_at
+    from pgc_jax.splat.fit import _learning_rates
+
+    s = FitSplatsSettings()
+    lrs = _learning_rates(0.3, 2.0, 16, s)
+    assert lrs["means"] == pytest.approx(2.0 * position_lr_at(0.3, s))
+    assert lrs["opacity_logits"] == lrs["quats"] == lrs["log_scales"] == pytest.approx(2.0 * s.lr_other)
+    assert lrs["sh"].shape == (16, 1) and lrs["sh"][0, 0] == pytest.approx(2.0 * s.lr_other)
+    np.testing.assert_allclose(lrs["sh"][1:], 2.0 * s.lr_other * REST_LR_FACTOR)
+
+
+def test_half_resolution_view_is_the_area_average():
+    from pgc.splats.fitplan import half_resolution
+
+    rng = np.random.default_rng(1)
+    cam = _camera(0, 4)
+    image, mask = rng.random((RES, RES, 3)).astype(np.float32), (rng.random((RES, RES)) > 0.5).astype(np.float32)
+    half = half_resolution(View(cam, image, mask=mask, background=image[::-1].copy()))
+    blocks = image.reshape(RES // 2, 2, RES // 2, 2, 3).mean((1, 3))
+    np.testing.assert_allclose(half.image, blocks, atol=1e-6)
+    np.testing.assert_allclose(half.mask, mask.reshape(RES // 2, 2, RES // 2, 2).mean((1, 3)), atol=1e-6)
+    np.testing.assert_allclose(half.background, image[::-1].reshape(RES // 2, 2, RES // 2, 2, 3).mean((1, 3)),
+                               atol=1e-6)
+    assert (half.camera.width, half.camera.height) == (RES // 2, RES // 2)
+    np.testing.assert_allclose(half.camera.K[:2], cam.K[:2] / 2)
+    assert half_resolution(View(cam, image)).mask is None
+
+
+def test_final_keep_drops_back_faces_then_keeps_the_garment():
+    from pgc.pipeline.settings_splats import FitSplatsSettings
+    from pgc.splats.fitplan import backfacing_faces, final_keep
+
+    mesh = _octahedron_sphere()
+    cams = [_camera(0, 8)]                          # one camera: about half the sphere faces away from it
+    parent = np.repeat(np.arange(len(mesh.faces)), 2)
+    keep = np.ones(len(parent), bool)
+    keep[::3] = False
+    back = backfacing_faces(mesh, cams)
+    assert 0 < back.sum() < len(back)
+    figures = {}
+    out = final_keep(keep, parent, mesh, cams, FitSplatsSettings(drop_backfacing=True), [2], figures)
+    expected = keep & ~back[parent] & (mesh.face_labels[parent] == 2)
+    np.testing.assert_array_equal(out, expected)
+    assert figures == {"dropped_backfacing": int((keep & back[parent]).sum()),
+                       "gaussians_selected": int((keep & ~back[parent]).sum()), "gaussians": int(expected.sum())}
+    assert keep[1] and not keep[0]                  # the input is left as it was
+    out_all = final_keep(keep, parent, mesh, cams, FitSplatsSettings(keep="all"), [2], {})
+    np.testing.assert_array_equal(out_all, keep)
+
+
+def test_training_views_come_in_epochs_and_coarse_first():
+    from types import SimpleNamespace
+
+    from pgc.pipeline.settings_splats import FitSplatsSettings
+    from pgc.splats.fitplan import training_view
+
+    s = FitSplatsSettings(coarse_fraction=0.5)
+    train = [SimpleNamespace(i=i, coarse=SimpleNamespace(i=-1 - i)) for i in range(5)]
+    order, rng = [], np.random.default_rng(0)
+    picks = [training_view(train, order, rng, 0.6, s).i for _ in range(15)]
+    assert all(sorted(picks[k:k + 5]) == list(range(5)) for k in (0, 5, 10)) and picks[:5] != picks[5:10]
+    assert training_view(train, order, rng, 0.49, s).i < 0  # the half-resolution copy

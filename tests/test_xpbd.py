@@ -7,7 +7,7 @@ import pytest
 
 from pgc.sim.collision import signed_distance
 from pgc.sim.driver import FrameRunner, XPBDSimulator, step_settings
-from pgc.sim.model import STRETCH, ClothModel, build_cloth_model
+from pgc.sim.model import STRETCH, ClothModel
 from pgc.sim.options import XPBDOptions
 from pgc.sim.scenes import grid_cloth, moving_motion, static_motion, uv_sphere
 from pgc.types import Mesh
@@ -84,12 +84,13 @@ def hanging_cloth(sim: XPBDSimulator, n: int = 10) -> tuple[FrameRunner, np.ndar
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_hanging_cloth_converges_to_a_static_shape(backend):
     sim = simulator(backend, damping=2.0, substeps=10, iterations=10)
-    run, _ = hanging_cloth(sim)
-    xs = [run.step(FAR_BODY.vertices, FAR_BODY.vertices)[0] for _ in range(150)]
+    run, rest = hanging_cloth(sim)
+    xs = [run.step(FAR_BODY.vertices, FAR_BODY.vertices)[0] for _ in range(60)]
     speed = np.linalg.norm(xs[-1] - xs[-2], axis=1).max() * 30.0
     assert speed < 2e-3, speed
-    assert np.abs(xs[-1][[0, 9]] - xs[0][[0, 9]]).max() == 0.0  # pins hold
-    assert xs[-1][:, 1].min() < xs[0][:, 1].min()  # it hangs
+    assert np.abs(xs[-1][[0, 9]] - rest[[0, 9]]).max() == 0.0  # pins hold
+    assert xs[-1][4, 1] < rest[4, 1] - 5e-4  # the top edge sags between the pinned corners
+    assert np.all(np.isfinite(xs[-1]))
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -117,9 +118,9 @@ def test_energy_does_not_grow_without_forcing(backend):
 
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_garment_draped_on_static_body_comes_to_rest(backend):
-    sim = simulator(backend, substeps=5, iterations=5, damping=3.0, friction=0.5, settle_frames=0)
+    sim = simulator(backend, substeps=5, iterations=5, damping=5.0, friction=0.5, settle_frames=0)
     body = uv_sphere(0.25, rings=12, segments=24)
-    out = sim.simulate(grid_cloth(10, 0.6, 0.26), static_motion(body, 64))
+    out = sim.simulate(grid_cloth(10, 0.6, 0.26), static_motion(body, 80))
     speed = np.linalg.norm(out.vertices[-1] - out.vertices[-2], axis=1).max() * 30.0
     assert speed < 0.01, speed
     assert out.figures["max_penetration_fraction"] == 0.0
@@ -134,7 +135,7 @@ def test_torch_and_jax_agree(solver):
     cloth = grid_cloth(7, 0.5, 0.27)
     motion = moving_motion(body, 3, velocity=(0.3, 0.0, 0.0))
     for dtype, tol in (("float64", 1e-9), ("float32", 1e-4)):
-        opts = dict(substeps=4, iterations=3, settle_frames=2, solver=solver, dtype=dtype)
+        opts = {"substeps": 4, "iterations": 3, "settle_frames": 2, "solver": solver, "dtype": dtype}
         a = simulator("torch", **opts).simulate(cloth, motion).vertices
         b = simulator("jax", **opts).simulate(cloth, motion).vertices
         assert np.abs(a - b).max() < tol, (dtype, np.abs(a - b).max())
@@ -147,9 +148,9 @@ def test_torch_and_jax_agree(solver):
 def test_zero_compliance_and_large_time_steps_stay_finite(backend):
     body = uv_sphere(0.25, rings=10, segments=20)
     cloth = grid_cloth(10, 0.6, 0.3)
-    for opts in (dict(stretch_stiffness=float("inf"), bend_stiffness=float("inf"), substeps=4, iterations=10),
-                 dict(substeps=1, iterations=3)):
-        motion = static_motion(body, 8)
+    for opts in ({"stretch_stiffness": float("inf"), "bend_stiffness": float("inf"), "substeps": 4, "iterations": 10},
+                 {"substeps": 1, "iterations": 3}):
+        motion = static_motion(body, 6)
         motion.fps = 4.0  # a 0.25 s step
         out = simulator(backend, settle_frames=0, **opts).simulate(cloth, motion)
         assert np.all(np.isfinite(out.vertices))
@@ -174,7 +175,7 @@ def test_zero_length_and_degenerate_edges_stay_finite(backend):
 def test_body_starting_inside_the_garment_is_resolved(backend):
     """The cloth cuts through the top of the sphere at the start; collisions push it out."""
     out = simulator(backend, substeps=10, iterations=5, settle_frames=0).simulate(
-        grid_cloth(10, 0.6, 0.2), static_motion(uv_sphere(0.25, rings=10, segments=20), 10))
+        grid_cloth(10, 0.6, 0.2), static_motion(uv_sphere(0.25, rings=10, segments=20), 6))
     assert np.all(np.isfinite(out.vertices))
     assert out.figures["penetration_fraction"][-1] <= 0.005
 
@@ -183,8 +184,8 @@ def test_body_starting_inside_the_garment_is_resolved(backend):
 def test_fast_motion_no_explosion_no_penetration(backend):
     """The sphere under the cloth accelerates sideways at 3 m/s: stays finite, penetration under 0.5 %."""
     body = uv_sphere(0.25, rings=10, segments=20)
-    sim = simulator(backend, substeps=10, iterations=5, settle_frames=5, friction=0.5)
-    out = sim.simulate(grid_cloth(10, 0.6, 0.27), moving_motion(body, 12, velocity=(3.0, 0.0, 0.0)))
+    sim = simulator(backend, substeps=10, iterations=5, settle_frames=3, friction=0.5)
+    out = sim.simulate(grid_cloth(10, 0.6, 0.27), moving_motion(body, 8, velocity=(3.0, 0.0, 0.0)))
     assert np.all(np.isfinite(out.vertices))
     assert max(out.figures["penetration_fraction"]) <= 0.005
     assert np.linalg.norm(np.diff(out.vertices, axis=0), axis=2).max() < 0.5  # no frame jumps 0.5 m

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from pgc.brdfs.maths import EVALUATORS, ltc_coefficients, ltc_density, pgc_sheen_terms, sheen_albedo, sheen_frame
+from pgc.brdfs.maths import EVALUATORS, ltc_coefficients, ltc_density, sheen_albedo, sheen_frame
 from pgc.brdfs.parameters import PARAMETERS
 from pgc.brdfs.xp import namespace
 from pgc.errors import PGCDataError

@@ -62,22 +62,24 @@ class MitsubaPBRRenderer(PBRRenderer):
         return RenderOutput(color=np.ascontiguousarray(img[..., :3]), alpha=np.ascontiguousarray(img[..., 3]))
 
     def render_texture(self, mesh: Mesh, material: Material, light: Light, camera: Camera,
-                       resolution: tuple[int, int], spp: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+                       resolution: tuple[int, int], occluder: Mesh | None = None,
+                       spp: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Radiance toward ``camera``'s centre at every texel centre: ((H, W, 3), (H, W) coverage).
 
-        Coverage is the fraction of a texel's rays that found the surface (0 outside the charts)."""
+        Coverage is the fraction of a texel's rays that found the surface (0 outside the charts);
+        ``occluder`` shadows and inter-reflects (a grey Lambertian shape)."""
         from pgc.texture.atlas import texel_geometry
 
         mi = mitsuba()
         height, width = int(resolution[0]), int(resolution[1])
         geom = texel_geometry(mesh, height, width)
         valid = geom.valid
-        points, normals = geom.position[valid], geom.normal[valid]
+        points = geom.position[valid]
         to_cam = camera.center[None, :] - points
         to_cam /= np.maximum(np.linalg.norm(to_cam, axis=1, keepdims=True), 1e-12)
         diag = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0))) or 1.0
         origins = points + self.options.ray_offset * diag * to_cam
-        scene = self._scene(mesh, material, light)
+        scene = self._scene(mesh, material, light, occluder)
         spp = spp or self.options.spp
         chunk = max(1, self.options.max_samples_per_pass // spp)
         radiance = np.zeros((len(points), 4))

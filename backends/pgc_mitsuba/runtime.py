@@ -47,8 +47,11 @@ def mesh_to_mitsuba(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh",
                     face_uv: np.ndarray | None = None, bsdf: Any = None, vertex_normals: bool = False) -> Any:
     """Build an ``mi.Mesh`` from arrays. Positions are split per face-corner where UV seams require it.
 
-    ``uv`` with ``face_uv``: per-corner texture coordinates (v up, as in :class:`pgc.types.Mesh`); Mitsuba
-    samples textures with v up as well after its own flip, so they are passed unchanged.
+    ``uv`` with ``face_uv``: per-corner texture coordinates (v up, as in :class:`pgc.types.Mesh`), passed
+    unchanged. Mitsuba's bitmap texture reads row ``v H`` (v = 0 is the top row), so a texture in PGC's
+    v-up convention must be flipped vertically when given to Mitsuba (``pgc_mitsuba.bsdfs`` does it).
+    ``vertex_normals``: smooth shading with area-weighted normals of the unsplit mesh, so UV seams do not
+    show as shading creases.
     """
     mi = mitsuba()
     vertices = np.asarray(vertices, dtype=np.float32)
@@ -57,9 +60,11 @@ def mesh_to_mitsuba(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh",
         # One Mitsuba vertex per distinct (position, uv) corner pair.
         corners = np.stack([faces.reshape(-1), np.asarray(face_uv, np.int64).reshape(-1)], axis=1)
         pairs, inverse = np.unique(corners, axis=0, return_inverse=True)
-        positions, texcoords = vertices[pairs[:, 0]], np.asarray(uv, np.float32)[pairs[:, 1]]
+        source = pairs[:, 0]
+        positions, texcoords = vertices[source], np.asarray(uv, np.float32)[pairs[:, 1]]
         tri = inverse.reshape(-1, 3)
     else:
+        source = np.arange(len(vertices))
         positions, texcoords, tri = vertices, None, faces
     props = mi.Properties()
     if bsdf is not None:
@@ -71,7 +76,10 @@ def mesh_to_mitsuba(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh",
     params["faces"] = mi.UInt32(tri.astype(np.uint32).reshape(-1))
     if texcoords is not None:
         params["vertex_texcoords"] = mi.Float(texcoords.reshape(-1))
-    params.update()
     if vertex_normals:
-        m.recompute_vertex_normals()
+        from pgc.types import Mesh
+
+        normals = Mesh(vertices, faces).vertex_normals()[source].astype(np.float32)
+        params["vertex_normals"] = mi.Float(normals.reshape(-1))
+    params.update()
     return m

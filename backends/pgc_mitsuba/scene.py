@@ -2,8 +2,9 @@
 
 An optional occluder mesh (the non-garment faces of a labelled mesh, e.g. the body of a capture; see
 :func:`pgc.brdfs.fitdata.split_occluders`) is added as a separate Lambertian shape: it casts shadows and
-inter-reflects but is not part of the shaded garment. The emitter is a constant environment of ``light.radiance`` or, with an environment
-map, the lat-long map times the radiance, rotated by ``light.rotation_deg`` about +Y.
+inter-reflects but is not part of the shaded garment. The emitter is a constant environment of
+``light.radiance`` or, with an environment map, the lat-long map times the radiance, rotated by
+``light.rotation_deg`` about +Y.
 """
 
 from __future__ import annotations

@@ -12,7 +12,9 @@ from pgc.errors import PGCDataError
 from pgc.types import Camera, Capture, Mesh, View
 
 INTERIOR = 0.999
-"""A pixel counts when at least this fraction of it is garment (edges mix garment and background)."""
+"""A pixel counts when at least this fraction of it and of each of its 8 neighbours is garment: silhouette
+pixels mix the garment with the background (a hard segmentation label does not show it), and there the
+view is grazing, so a sheen lobe could "explain" the background's colour."""
 
 
 @dataclass
@@ -30,6 +32,17 @@ def _block_mean(a: np.ndarray, f: int) -> np.ndarray:
     h, w = a.shape[0] // f * f, a.shape[1] // f * f
     a = a[:h, :w]
     return a.reshape(h // f, f, w // f, f, *a.shape[2:]).mean(axis=(1, 3))
+
+
+def _erode(inside: np.ndarray) -> np.ndarray:
+    """Pixels whose 3x3 neighbourhood lies inside (image borders count as outside)."""
+    padded = np.pad(inside, 1, constant_values=False)
+    h, w = inside.shape
+    out = np.ones_like(inside)
+    for dy in range(3):
+        for dx in range(3):
+            out &= padded[dy:dy + h, dx:dx + w]
+    return out
 
 
 def garment_fraction(view: View, garment_ids: list[int]) -> np.ndarray:
@@ -53,7 +66,7 @@ def prepare_views(capture: Capture, max_side: int, views: list[int] | None = Non
         K = cam.K.copy()
         K[:2] /= f
         small = replace(cam, K=K, width=cam.width // f, height=cam.height // f)
-        weight = (_block_mean(garment_fraction(view, ids), f) >= INTERIOR).astype(np.float32)
+        weight = _erode(_block_mean(garment_fraction(view, ids), f) >= INTERIOR).astype(np.float32)
         out.append(FitView(small, _block_mean(view.image, f).astype(np.float32), weight, cam.name))
     if not any(v.weight.any() for v in out):
         raise PGCDataError("capture: no view has garment pixels (check the segmentation labels "

@@ -74,7 +74,8 @@ def fit_and_select(renderer: Any, capture: Capture, mesh: Mesh, material: Materi
                        "seconds": fit.figures.get("seconds"), "params": fit.material.params,
                        "radiance": np.asarray(fit.light.radiance).tolist()}
     best = max(t["psnr_holdout"] for t in table.values())
-    chosen = next(m for m in sorted(table, key=SIMPLICITY.index) if table[m]["psnr_holdout"] >= best - settings.margin_db)
+    chosen = next(m for m in sorted(table, key=SIMPLICITY.index)
+                  if table[m]["psnr_holdout"] >= best - settings.margin_db)
     best_name = max(table, key=lambda m: table[m]["psnr_holdout"])
     if chosen == best_name:
         reason = (f"'{chosen}' has the best held-out PSNR ({best:.2f} dB) and no simpler model is within "

@@ -9,10 +9,11 @@ import numpy as np
 
 from pgc.events import Reporter
 from pgc.geometry.hull import SilhouetteField, _axis_centre, check_views, pixel_footprint, visual_hull
+from pgc.geometry.metrics import sample_surface
 from pgc.geometry.options import DenseOptions
 from pgc.geometry.raster import rasterize
 from pgc.geometry.stereo import depth_maps, depth_to_points
-from pgc.types import Capture
+from pgc.types import Capture, Mesh
 
 
 @dataclass
@@ -24,6 +25,8 @@ class DenseResult:
     depths: list[np.ndarray]
     """Filtered depth map per view (camera z, 0 where invalid)."""
     field: SilhouetteField
+    hull: Mesh
+    """The visual hull's surface."""
     footprint: float
     """Median pixel footprint at the object (metres)."""
     stereo_points: int
@@ -31,8 +34,6 @@ class DenseResult:
 
 
 def dense_points(capture: Capture, options: DenseOptions, reporter: Reporter | None = None) -> DenseResult:
-    from scipy.spatial import cKDTree
-
     reporter = reporter or Reporter.silent()
     views = capture.views
     masks = check_views(views, options.min_views)
@@ -51,18 +52,23 @@ def dense_points(capture: Capture, options: DenseOptions, reporter: Reporter | N
     points, normals = np.concatenate(pts), np.concatenate(nrm)
     n_stereo = len(points)
     n_hull = 0
+    hull = Mesh(hv, hf)
     if options.hull_fill:
-        from pgc.geometry.metrics import sample_surface
-        from pgc.types import Mesh
+        hp, hn = hull_fill_points(hull, points, footprint)
+        points, normals = np.concatenate([points, hp]), np.concatenate([normals, hn])
+        n_hull = len(hp)
+    return DenseResult(points, normals, depths, field, hull, footprint, n_stereo, n_hull)
 
-        hull = Mesh(hv, hf)
-        count = int(hull.face_areas().sum() / footprint ** 2)
-        hp, hfid = sample_surface(hull, count, seed=0)
-        far = np.ones(len(hp), bool) if n_stereo == 0 else cKDTree(points).query(hp, workers=-1)[0] > 3 * footprint
-        points = np.concatenate([points, hp[far]])
-        normals = np.concatenate([normals, hull.face_normals()[hfid[far]]])
-        n_hull = int(far.sum())
-    return DenseResult(points, normals, depths, field, footprint, n_stereo, n_hull)
+
+def hull_fill_points(hull: Mesh, points: np.ndarray, footprint: float) -> tuple[np.ndarray, np.ndarray]:
+    """Samples of the hull surface (one per footprint squared) farther than three footprints from every
+    point of ``points``, with the hull's outward normals."""
+    from scipy.spatial import cKDTree
+
+    count = int(hull.face_areas().sum() / footprint ** 2)
+    hp, hfid = sample_surface(hull, count, seed=0)
+    far = np.ones(len(hp), bool) if len(points) == 0 else cKDTree(points).query(hp, workers=-1)[0] > 3 * footprint
+    return hp[far], hull.face_normals()[hfid[far]]
 
 
 def poisson_depth_for(points: np.ndarray, cell: float) -> int:

@@ -91,13 +91,14 @@ def point_mesh_distance(points: np.ndarray, mesh: Mesh, candidates: int = 16) ->
     return best, face
 
 
-def visible_faces(mesh: Mesh, cameras: list[Camera]) -> np.ndarray:
-    """(F,) bool: faces that cover at least one pixel centre in some camera."""
-    seen = np.zeros(len(mesh.faces), dtype=bool)
+def visible_faces(mesh: Mesh, cameras: list[Camera], min_views: int = 1) -> np.ndarray:
+    """(F,) bool: faces that cover at least one pixel centre in ``min_views`` or more cameras (2: the
+    surface that multi-view reconstruction can see; 1 includes glimpses through openings)."""
+    count = np.zeros(len(mesh.faces), dtype=np.int64)
     for cam in cameras:
         fid = rasterize(cam, mesh.vertices, mesh.faces).face_id
-        seen[fid[fid >= 0]] = True
-    return seen
+        count[np.unique(fid[fid >= 0])] += 1
+    return count >= min_views
 
 
 def compare_meshes(pred: Mesh, gt: Mesh, samples: int = 100_000, thresholds: tuple[float, ...] = (0.005, 0.01),

@@ -16,7 +16,7 @@ class FinishOptions(Options):
     min_component_fraction: float = Field(0.02, ge=0.0, le=1.0,
                                           description="drop connected components with fewer faces than this "
                                                       "fraction of the largest one")
-    max_hole_edges: int = Field(200, ge=0, description="close holes bounded by at most this many edges")
+    max_hole_edges: int = Field(1000, ge=0, description="close holes bounded by at most this many edges")
     uv_resolution: int = Field(1024, ge=64, le=16384, description="texture size the UV atlas is packed for (px)")
     uv_padding: int = Field(2, ge=0, le=64, description="texels between UV charts")
     label_depth_tolerance_px: float = Field(1.5, gt=0.0, description="visibility test tolerance of the label "
@@ -36,6 +36,10 @@ class DenseOptions(FinishOptions):
     min_score: float = Field(0.5, ge=-1.0, le=1.0, description="lowest accepted NCC")
     min_consistent: int = Field(2, ge=0, description="neighbour depth maps that must agree with a depth")
     consistency: float = Field(0.01, gt=0.0, description="relative depth agreement of the consistency check")
+    hull_tolerance: float = Field(0.05, ge=0.0, le=2.0, description="keep the visual hull's depth where its NCC "
+                                                                    "is within this of the best hypothesis")
+    poisson_cell_px: float = Field(0.5, gt=0.05, le=4.0, description="Poisson octree cell in pixel footprints "
+                                                                     "(sets the depth when none is given)")
     hull_fill: bool = Field(True, description="add visual-hull surface points where stereo found none "
                                                "(the hull bounds the surface; exact where it is convex)")
     hull_margin_px: float = Field(2.0, ge=0.0, description="trim surface parts farther than this many pixel "
@@ -47,4 +51,5 @@ class DenseOptions(FinishOptions):
 
         return StereoSettings(neighbours=self.neighbours, top_k=self.top_k, window=self.window | 1,
                               band=self.band, step_px=self.step_px, min_score=self.min_score,
-                              min_consistent=self.min_consistent, consistency=self.consistency)
+                              min_consistent=self.min_consistent, consistency=self.consistency,
+                              hull_tolerance=self.hull_tolerance)

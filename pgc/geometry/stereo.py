@@ -42,6 +42,9 @@ class StereoSettings:
     """Lowest accepted NCC."""
     min_consistent: int = 2
     """Neighbours whose depth must agree."""
+    hull_tolerance: float = 0.05
+    """Keep the visual hull's depth where its NCC is within this of the best hypothesis: where the hull is
+    already photo-consistent (convex parts) the sweep's winner only adds noise."""
     consistency: float = 0.01
     """Relative depth agreement of the consistency check."""
 
@@ -144,7 +147,10 @@ def sweep_depth(views: list[View], index: int, hull_depth: np.ndarray, masks: li
     curved = (best == b0) & (denom < -1e-6)
     shift = np.where(curved, 0.5 * (c_m - c_p) / np.where(curved, denom, -1.0), 0.0)
     refined = z0 + offsets[0] + step * (best + np.clip(shift, -0.5, 0.5))
-    ok = valid & (best_score >= settings.min_score) & (best > 0) & (best < planes - 1)
+    at_hull = int(np.argmin(np.abs(offsets)))
+    hull_ok = costs[at_hull] >= best_score - settings.hull_tolerance
+    refined = np.where(hull_ok, z0 + offsets[at_hull], refined)
+    ok = valid & (best_score >= settings.min_score) & ((best > 0) & (best < planes - 1) | hull_ok)
     depth[y0:y1, x0:x1][ok] = refined[ok]
     score[y0:y1, x0:x1][ok] = best_score[ok]
     return depth, score

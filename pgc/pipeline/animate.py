@@ -60,11 +60,8 @@ def animate(asset_dir: str | Path, motion_spec: str, out: str | Path, cfg: RunCo
     capture = Path(capture_dir) if capture_dir else source_capture(asset.config)
     settings = cfg.stage("animate")
     motion = resolve_motion(motion_spec, capture, settings.seconds)
-    choice = cfg.roles["simulator"]
-    opts = choice.options.get(choice.name)
-    key = content_key("simulate", file_key(asset_dir / "garment.obj"), motion_spec, settings, choice.name,
-                      None if opts is None else opts.model_dump(mode="json"),
-                      array_key(motion.vertices))
+    key = content_key("simulate", file_key(asset_dir / "garment.obj"), motion_spec, settings,
+                      cfg.role_key("simulator"), array_key(motion.vertices))
 
     def compute(folder: Path):
         sim = cfg.create("simulator").simulate(asset.garment, motion, reporter)
@@ -77,7 +74,8 @@ def animate(asset_dir: str | Path, motion_spec: str, out: str | Path, cfg: RunCo
     save_npz(out / "body.npz", vertices=motion.vertices, faces=motion.faces)
     write_json(out / "run.json", {
         "asset": str(asset_dir.resolve()), "capture": None if capture is None else str(capture.resolve()),
-        "motion": motion_spec, "fps": motion.fps, "frames": motion.num_frames, "simulator": choice.name,
+        "motion": motion_spec, "fps": motion.fps, "frames": motion.num_frames,
+        "simulator": cfg.roles["simulator"].name,
         "figures": StageCache(out / "stages").figures("simulate")})
     return out
 

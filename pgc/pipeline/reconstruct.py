@@ -11,23 +11,30 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from pgc.config import RunConfig
 from pgc.events import Reporter
-from pgc.pipeline.cache import StageCache, content_key, file_key
 from pgc.geometry.garment import garment_selection
-from pgc.pipeline.garment import garment_gaussians
+from pgc.pipeline.cache import StageCache, content_key, file_key
+from pgc.pipeline.garment import body_occluder, garment_gaussians, with_occluder
 from pgc.pipeline.stage_io import load_gaussians, load_mesh, save_gaussians, save_mesh
 from pgc.types import GarmentAsset, Light, Material, Mesh
 
 
-def _impl_key(cfg: RunConfig, role: str) -> dict[str, Any]:
-    choice = cfg.roles[role]
-    opts = choice.options.get(choice.name)
-    return {"role": role, "name": choice.name, "options": None if opts is None else opts.model_dump(mode="json")}
+def extract_garment(full: Mesh, garment_ids: list[int], settings) -> tuple[Mesh, np.ndarray]:
+    """The garment faces of ``full`` as one clean piece with its own UV atlas (xatlas, via pgc_meshlab);
+    without pgc_meshlab, the full mesh's atlas restricted to those faces."""
+    from pgc.registry import module_available
+
+    if module_available("pgc_meshlab") and module_available("xatlas"):
+        from pgc_meshlab.finish import extract_garment as extract
+
+        return extract(full, garment_ids, settings.garment_min_island_faces, settings.garment_uv_resolution,
+                       settings.garment_uv_padding)
+    sel = garment_selection(full, garment_ids, settings.garment_min_island_faces)
+    return full.submesh(sel, name="garment")[0], sel
 
 
 def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
@@ -50,7 +57,7 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
         return result
 
     # 1. mesh
-    mesh_key = content_key("mesh", capture_key, _impl_key(cfg, "reconstructor"))
+    mesh_key = content_key("mesh", capture_key, cfg.role_key("reconstructor"))
 
     def compute_mesh(folder: Path):
         rec = cfg.create("reconstructor").reconstruct(capture, reporter)
@@ -59,12 +66,24 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
 
     full = timed("mesh", lambda: cache.run("mesh", mesh_key, compute_mesh,
                                            lambda f: load_mesh(f / "mesh.npz")))
-    sel = garment_selection(full.value, capture.garment_label_ids)
-    garment, _ = full.value.submesh(sel, name="garment")
+    # 2. the garment sub-mesh with its own UV atlas (the simulator's rest shape and the texture's domain)
+    mesh_settings = cfg.stage("mesh")
+    garment_key = content_key("garment", mesh_key, mesh_settings, capture.garment_label_ids)
+
+    def compute_garment(folder: Path):
+        garment, sel = extract_garment(full.value, capture.garment_label_ids, mesh_settings)
+        save_mesh(folder / "garment.npz", garment)
+        np.save(folder / "selection.npy", sel)
+        return (garment, sel), {"garment_vertices": len(garment.vertices), "garment_faces": len(garment.faces)}
+
+    def load_garment(folder: Path):
+        return load_mesh(folder / "garment.npz"), np.load(folder / "selection.npy")
+
+    garment, sel = timed("garment", lambda: cache.run("garment", garment_key, compute_garment, load_garment)).value
 
     # 2. splats
     splat_settings = cfg.stage("fit_splats")
-    splat_key = content_key("splats", mesh_key, _impl_key(cfg, "splat_renderer"), splat_settings)
+    splat_key = content_key("splats", mesh_key, cfg.role_key("splat_renderer"), splat_settings)
 
     def compute_splats(folder: Path):
         fit = cfg.create("splat_renderer").fit(capture, full.value, splat_settings, reporter)
@@ -77,7 +96,7 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
 
     # 3. base colour
     tex_settings = cfg.stage("base_color")
-    tex_key = content_key("base_color", mesh_key, _impl_key(cfg, "albedo_estimator"), tex_settings)
+    tex_key = content_key("base_color", garment_key, cfg.role_key("albedo_estimator"), tex_settings)
 
     def compute_texture(folder: Path):
         from pgc.albedo.texture_stage import build_base_color
@@ -94,12 +113,14 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
 
     # 4. material and light
     mat_settings = cfg.stage("material")
-    mat_key = content_key("material", tex_key, _impl_key(cfg, "pbr_renderer"), _impl_key(cfg, "brdf"), mat_settings)
+    mat_key = content_key("material", tex_key, cfg.role_key("pbr_renderer"), cfg.role_key("brdf"), mat_settings)
 
     def compute_material(folder: Path):
         renderer = cfg.create("pbr_renderer")
         init = Material(cfg.roles["brdf"].name, cfg.create("brdf").initial_params(), texture.value)
-        fit = renderer.fit(capture, garment, init, mat_settings, reporter)
+        # the body casts shadows on the garment: the renderer splits it off by label
+        scene = with_occluder(garment, body_occluder(full.value, capture.garment_label_ids))
+        fit = renderer.fit(capture, scene, init, mat_settings, reporter)
         (folder / "material.json").write_text(json.dumps(
             {"brdf": fit.material.brdf, "params": fit.material.params,
              "light": {"radiance": fit.light.radiance.tolist()}, "figures": fit.figures}, indent=2))
@@ -113,7 +134,7 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
     mat, light = material.value
     mat.base_color = texture.value
 
-    figures = {name: cache.figures(name) for name in ("mesh", "splats", "base_color", "material")}
+    figures = {name: cache.figures(name) for name in ("mesh", "garment", "splats", "base_color", "material")}
     figures["seconds"] = timings
     figures["gaussians_garment"] = len(gaussians)
     asset = GarmentAsset(garment=garment, body=full.value, gaussians=gaussians, material=mat, light=light,

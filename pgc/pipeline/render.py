@@ -19,7 +19,9 @@ from pgc.config import RunConfig
 from pgc.events import Reporter
 from pgc.io.atomic import write_json
 from pgc.pipeline.animate import read_run
+from pgc.pipeline.cache import StageCache, array_key, content_key, file_key
 from pgc.pipeline.compose import compose, far_field_gaussians, gaussian_uvs, unpremultiply
+from pgc.pipeline.garment import body_occluder
 from pgc.pipeline.stage_io import save_npz
 from pgc.splats.binding import bind
 from pgc.types import Camera, GarmentAsset, Light, Mesh
@@ -48,20 +50,23 @@ class HybridRenderer:
         g = self.asset.garment
         return Mesh(vertices, g.faces, g.uv, g.face_uv, g.face_labels, name="garment")
 
-    def layers(self, vertices: np.ndarray, camera: Camera) -> dict[str, Any]:
-        """Near-field, far-field and PBR-only renders of the garment at ``vertices`` (before composition)."""
+    def layers(self, vertices: np.ndarray, camera: Camera, occluder: Mesh | None = None) -> dict[str, Any]:
+        """Near-field, far-field and PBR-only renders of the garment at ``vertices`` (before composition);
+        ``occluder`` (the body in the same frame) shadows the far-field texture."""
         mesh = self.mesh_at(vertices)
         faces = self.asset.garment.faces
         near = self.splats.render(bind(self.asset.gaussians, vertices, faces), camera)
         size = self.settings.texture_size
-        texture, _ = self.pbr.render_texture(mesh, self.asset.material, self.light, camera, (size, size))
+        texture, _ = self.pbr.render_texture(mesh, self.asset.material, self.light, camera, (size, size),
+                                             occluder=occluder)
         far_set = far_field_gaussians(self.asset.gaussians, self.uvs, texture)
         far = self.splats.render(bind(far_set, vertices, faces), camera)
         pbr = self.pbr.render(mesh, self.asset.material, self.light, camera)
         return {"near": near, "far": far, "pbr": pbr}
 
-    def frame(self, vertices: np.ndarray, camera: Camera, kernel_size: int) -> dict[str, np.ndarray]:
-        lay = self.layers(vertices, camera)
+    def frame(self, vertices: np.ndarray, camera: Camera, kernel_size: int,
+              occluder: Mesh | None = None) -> dict[str, np.ndarray]:
+        lay = self.layers(vertices, camera, occluder)
         h = compose(lay["near"], lay["far"], self.filter, kernel_size)
         return {"hybrid": h.hybrid, "near": h.near, "far": h.far, "pbr": lay["pbr"].color,
                 "alpha": h.alpha, "pbr_alpha": lay["pbr"].alpha, "low_far": h.low_far, "high_near": h.high_near}
@@ -74,9 +79,10 @@ def choose_kernel(renderer: HybridRenderer, capture, cfg: RunConfig) -> dict[str
 
     settings = cfg.stage("render")
     rest = renderer.asset.garment.vertices
+    body = body_occluder(renderer.asset.body, capture.garment_label_ids)
     choices = []
     for view in spread(capture.views, settings.kernel_views):
-        lay = renderer.layers(rest, view.camera)
+        lay = renderer.layers(rest, view.camera, body)
         mask = garment_mask(view, capture.garment_label_ids)
         choices.append(select_kernel(settings.kernel, renderer.filter, view.image, lay["near"].alpha,
                                      unpremultiply(lay["near"]), unpremultiply(lay["far"]), lay["far"].alpha, mask))
@@ -112,22 +118,33 @@ def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
         raise PGCDataError(f"{run_dir}: the run records no capture; its cameras are needed to render")
     settings = cfg.stage("render")
     renderer = HybridRenderer(asset, cfg, light)
-    with reporter.stage("choose_kernel") as st:
-        kernel = choose_kernel(renderer, capture, cfg)
-        st.record(kernel_size=kernel["kernel_size"])
-    vertices = np.load(run_dir / "garment.npz")["vertices"]
-    frames = list(range(0, len(vertices), settings.frame_stride))
-    cameras = spread(capture.cameras, settings.views)
-    out = run_dir / "render"
-    with reporter.stage("render_frames", total=len(frames) * len(cameras)) as st:
-        for i, t in enumerate(frames):
-            if rotate_light:
-                renderer.light = replace(renderer.light, rotation_deg=360.0 * i / len(frames))
-            per_cam = [renderer.frame(vertices[t].astype(np.float64), cam, kernel["kernel_size"]) for cam in cameras]
-            save_npz(out / f"frame_{t:04d}.npz", **{k: np.stack([p[k] for p in per_cam]) for k in per_cam[0]})
-            st.progress((i + 1) * len(cameras))
-    write_json(out / "render.json", {"frames": frames, "cameras": [c.name for c in cameras], **kernel,
-                                     "light": {"radiance": renderer.light.radiance.tolist(),
-                                               "envmap": renderer.light.envmap is not None,
-                                               "rotating": rotate_light}})
-    return out
+    key = content_key("render", file_key(run_dir / "garment.npz"), file_key(Path(meta["asset"]) / "manifest.json"),
+                      settings, rotate_light, [cfg.role_key(r) for r in ("splat_renderer", "pbr_renderer", "filter")],
+                      {"radiance": renderer.light.radiance.tolist(), "rotation": renderer.light.rotation_deg,
+                       "envmap": None if renderer.light.envmap is None else array_key(renderer.light.envmap)})
+
+    def compute(folder: Path):
+        with reporter.stage("choose_kernel") as st:
+            kernel = choose_kernel(renderer, capture, cfg)
+            st.record(kernel_size=kernel["kernel_size"])
+        vertices = np.load(run_dir / "garment.npz")["vertices"]
+        with np.load(run_dir / "body.npz") as z:
+            body_vertices, body_faces = z["vertices"], z["faces"]
+        frames = list(range(0, len(vertices), settings.frame_stride))
+        cameras = spread(capture.cameras, settings.views)
+        with reporter.stage("render_frames", total=len(frames) * len(cameras)) as st:
+            for i, t in enumerate(frames):
+                if rotate_light:
+                    renderer.light = replace(renderer.light, rotation_deg=360.0 * i / len(frames))
+                body = Mesh(body_vertices[t], body_faces, name="body")
+                per_cam = [renderer.frame(vertices[t].astype(np.float64), cam, kernel["kernel_size"], body)
+                           for cam in cameras]
+                save_npz(folder / f"frame_{t:04d}.npz", **{k: np.stack([p[k] for p in per_cam]) for k in per_cam[0]})
+                st.progress((i + 1) * len(cameras))
+        meta_out = {"frames": frames, "cameras": [c.name for c in cameras], **kernel,
+                    "light": {"radiance": renderer.light.radiance.tolist(), "envmap": renderer.light.envmap is not None,
+                              "rotating": rotate_light}}
+        write_json(folder / "render.json", meta_out)
+        return meta_out, {"kernel_size": kernel["kernel_size"], "frames": len(frames), "views": len(cameras)}
+
+    return StageCache(run_dir).run("render", key, compute, lambda f: None).folder

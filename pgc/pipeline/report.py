@@ -14,14 +14,15 @@ from pgc.io.images import write_image
 from pgc.pipeline.evaluate import VARIANTS
 
 STRIP = ("ground truth", "3DGS-only", "PBR-only", "hybrid", "|hybrid - gt| x4")
+DECOMPOSITION = ("l(S) low-pass of the far field", "h(G) high-pass of the near field (0.5 + h)")
+SLUGS = dict(zip(STRIP + DECOMPOSITION, ("gt", "3dgs_only", "pbr_only", "hybrid", "error", "low_far", "high_near")))
 
 
 def _strip_images(run: Path, frame: int, camera: int) -> dict[str, np.ndarray]:
     pred = np.load(run / "render" / f"frame_{frame:04d}.npz")
     gt_file = next((run / "gt").glob(f"frame_{frame:04d}_spp*.npz"), None)
     out = {"3DGS-only": pred["near"][camera], "PBR-only": pred["pbr"][camera], "hybrid": pred["hybrid"][camera],
-           "l(S) low-pass of the far field": pred["low_far"][camera],
-           "h(G) high-pass of the near field (0.5 + h)": 0.5 + pred["high_near"][camera]}
+           DECOMPOSITION[0]: pred["low_far"][camera], DECOMPOSITION[1]: 0.5 + pred["high_near"][camera]}
     if gt_file is not None:
         gt = np.load(gt_file)
         target = gt["color"][camera] * gt["garment_mask"][camera][..., None]
@@ -41,10 +42,10 @@ def write_report(out: str | Path, summary: dict[str, Any], results: dict[str, di
         frame = frames[len(frames) // 2]
         images = _strip_images(run, frame, 0)
         cells = []
-        for label in STRIP + ("l(S) low-pass of the far field", "h(G) high-pass of the near field (0.5 + h)"):
+        for label in STRIP + DECOMPOSITION:
             if label not in images:
                 continue
-            name = f"{motion}_{frame:04d}_{label.split()[0].strip('|').replace('/', '_')}.png"
+            name = f"{motion}_{frame:04d}_{SLUGS[label]}.png"
             write_image(figs / name, np.clip(images[label], 0, 1))
             cells.append(f"<figure><img src='report/{html.escape(name)}'><figcaption>{html.escape(label)}"
                          "</figcaption></figure>")

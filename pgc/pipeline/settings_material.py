@@ -17,7 +17,7 @@ class MaterialFitSettings(Options):
     light trapped between garment and body needs them)."""
     max_iterations: int = Field(3000, ge=1)
     """Upper bound on Adam steps (paper: 3000 fixed)."""
-    patience: int = Field(50, ge=1)
+    patience: int = Field(100, ge=1)
     """Stopping window W: stop when the mean loss of the last W steps is not ``min_improvement`` (relative)
     below the mean of the W steps before (the 4-spp loss is noisy; window means see through it)."""
     min_improvement: float = Field(2e-3, ge=0.0)

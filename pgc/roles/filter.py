@@ -5,7 +5,9 @@ Contract
   renormalised per pixel: ``l(I)(p) = sum_q G(p - q) a(q) I(q) / sum_q G(p - q) a(q)``, so background does
   not bleed into the garment. ``kernel_size`` is odd, in pixels, with ``sigma = kernel_size / 6``; the
   image border is handled by clamping the kernel to the image (renormalised like alpha). Where the
-  denominator is below 1e-6 the result is ``image`` itself (defined and finite).
+  blurred alpha ``d`` is below 1e-6 the result blends continuously toward ``image``:
+  ``(num + (1e-6 - d) image) / 1e-6``, exactly ``image`` at d = 0, finite everywhere (continuous, so
+  backends whose sums differ in the last bit cannot jump between two answers).
 - ``image`` (H, W, C) float32, ``alpha`` (H, W) in [0, 1]; output (H, W, C) float32.
 - ``highpass = image - lowpass`` (so high + low is the identity).
 """

@@ -5,7 +5,8 @@ Contract
   (linear RGB radiance over a black background, alpha = pixel coverage).
 - :meth:`render_texture`: outgoing radiance toward ``camera``'s centre at every texel centre of the mesh's
   UV atlas, (H, W, 3), plus the (H, W) coverage of the atlas (0 outside charts). Shadowing and indirect
-  light are included where the implementation supports them (documented per implementation).
+  light are included where the implementation supports them (documented per implementation);
+  ``occluder`` (e.g. the body under a garment) casts shadows on the mesh but is not itself returned.
 - :meth:`fit`: fits the parameters of ``brdf`` (not the base-colour texture) and the RGB radiance of a
   constant environment light to ``capture`` on ``mesh``; returns the fitted material, light and figures.
 """
@@ -40,7 +41,7 @@ class PBRRenderer(RoleImplementation, ABC):
 
     @abstractmethod
     def render_texture(self, mesh: Mesh, material: Material, light: Light, camera: Camera,
-                       resolution: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+                       resolution: tuple[int, int], occluder: Mesh | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Radiance toward ``camera`` at each texel of the UV atlas: ((H, W, 3), (H, W) coverage)."""
 
     def fit(self, capture: Capture, mesh: Mesh, material: Material, settings: Any = None,

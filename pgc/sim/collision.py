@@ -6,17 +6,12 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from pgc.sim.kernels import NUMPY, closest_contact
+from pgc.types import Mesh
 
 
 def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(B, 3) area-weighted unit vertex normals (zero where undefined)."""
-    v = vertices[faces]
-    n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
-    out = np.zeros(vertices.shape, dtype=np.float64)
-    for k in range(3):
-        np.add.at(out, faces[:, k], n)
-    length = np.linalg.norm(out, axis=1, keepdims=True)
-    return np.divide(out, length, out=np.zeros_like(out), where=length > 0)
+    """(B, 3) area-weighted unit vertex normals (zero where undefined), see :meth:`Mesh.vertex_normals`."""
+    return Mesh(vertices, faces).vertex_normals()
 
 
 def candidate_corners(points: np.ndarray, body: np.ndarray, faces: np.ndarray, k: int) -> np.ndarray:

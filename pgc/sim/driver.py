@@ -4,14 +4,19 @@ from __future__ import annotations
 
 import math
 import time
-from abc import abstractmethod
+from abc import ABC, abstractmethod
 from typing import Any
 
 import numpy as np
 
 from pgc.events import Reporter
 from pgc.roles.simulator import Simulation, Simulator
-from pgc.sim.collision import candidate_corners, penetration_fraction, self_collision_pairs, vertex_normals
+from pgc.sim.collision import (
+    candidate_corners,
+    penetration_fraction,
+    self_collision_pairs,
+    vertex_normals,
+)
 from pgc.sim.kernels import FrameInput, StepSettings
 from pgc.sim.model import STRETCH, ClothModel, build_cloth_model
 from pgc.sim.options import XPBDOptions
@@ -32,7 +37,7 @@ def constraint_groups(model: ClothModel, options: XPBDOptions, h: float) -> list
     return [group(idx, np.ones(len(idx))) for idx in model.colours]
 
 
-class Stepper:
+class Stepper(ABC):
     """One backend's state (positions, velocities) and its frame step. Subclasses convert at the edge."""
 
     def __init__(self, model: ClothModel, settings: StepSettings, options: XPBDOptions) -> None:

@@ -11,8 +11,9 @@ graph colour, ``omega / max(n_i, n_j)`` for a Jacobi sweep); multipliers ``lam``
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable, NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -176,16 +177,18 @@ def contact_mask(ops: ArrayOps, p: Any, con: Contact, radius: float, free: Any) 
 
 
 def collide_body(ops: ArrayOps, p: Any, x_start: Any, body: Any, body_start: Any, normals: Any, corners: Any,
-                 offset: float, friction: float, radius: float, free: Any) -> Any:
+                 offset: float, friction: float, radius: float, free: Any, pushed: Any) -> Any:
     """Push vertices closer than ``offset`` to the body out along the body normal, with Coulomb friction.
 
     Friction acts on the tangential displacement relative to the body point over the substep
-    (``x_start`` -> ``p`` against ``body_start`` -> ``body``): removed up to ``friction * depth``.
-    ``free``: (V,) 1 for simulated vertices, 0 for pinned ones.
+    (``x_start`` -> ``p`` against ``body_start`` -> ``body``): removed up to ``friction * depth``, with
+    depth the normal correction of this push plus ``pushed`` (V,), the contact correction already applied
+    during the iterations. ``free``: (V,) 1 for simulated vertices, 0 for pinned ones.
     """
     xp = ops.xp
     con = closest_contact(ops, p, body, normals, corners)
     p, depth = push_out(ops, p, con.point, con.normal, contact_mask(ops, p, con, radius, free), offset)
+    depth = depth + pushed
     hit = depth > 0
     body_move = con.point - (con.bary[..., None] * body_start[con.tri]).sum(-2)
     rel = (p - x_start) - body_move
@@ -283,6 +286,7 @@ def advance_frame(ops: ArrayOps, s: StepSettings, statics: Statics, x: Any, v: A
 
         con = closest_contact(ops, p, body, normals, frame.corners)  # contact planes for the iterations
         active = contact_mask(ops, p, con, s.contact_radius, statics.free)
+        pushed = xp.where(active, s.offset - con.signed, 0.0).clip(min=0.0)  # normal correction, for friction
 
         def sweep(_: Any, state: tuple) -> tuple:
             p, lam = state
@@ -298,7 +302,7 @@ def advance_frame(ops: ArrayOps, s: StepSettings, statics: Statics, x: Any, v: A
             p = separate_pairs(ops, p, statics.inv_mass, frame.pairs[:, 0], frame.pairs[:, 1], frame.pair_valid,
                                s.thickness)
         p = collide_body(ops, p, x, body, body_start, normals, frame.corners, s.offset, s.friction,
-                         s.contact_radius, statics.free)
+                         s.contact_radius, statics.free, pushed)
         return p, (p - x) / s.h, lam
 
     x, v, lam = ops.loop(s.substeps, substep, (x, v, lam0))

@@ -44,9 +44,9 @@ class ClothModel:
 
     @property
     def num_vertices(self) -> int:
-        return int(len(self.rest_positions))
+        return len(self.rest_positions)
 
-    def with_rest(self, rest: np.ndarray) -> "ClothModel":
+    def with_rest(self, rest: np.ndarray) -> ClothModel:
         """The same model with new rest lengths (the sag-free solve changes only these)."""
         return replace(self, rest=np.asarray(rest, dtype=np.float64))
 
@@ -61,7 +61,7 @@ def bending_pairs(faces: np.ndarray) -> np.ndarray:
     key = np.minimum(a, b) * (f.max(initial=0) + 1) + np.maximum(a, b)
     order = np.argsort(key, kind="stable")
     key, opp = key[order], opp[order]
-    uniq, start, count = np.unique(key, return_index=True, return_counts=True)
+    _, start, count = np.unique(key, return_index=True, return_counts=True)
     two = start[count == 2]
     pairs = np.stack([opp[two], opp[two + 1]], axis=1)
     pairs = pairs[pairs[:, 0] != pairs[:, 1]]

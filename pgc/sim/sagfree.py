@@ -13,7 +13,8 @@ start at the target, so the solve keeps the garment where it was captured wherev
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 

@@ -1,5 +1,6 @@
-"""Backend-neutral pieces of the splat fit (numpy): initial count, schedules, contour band, held-out split,
-back-facing faces, checkpoint fingerprint and the held-out model selection. Every backend's ``fit_splats``
+"""Backend-neutral pieces of the splat fit (numpy): initial count, progress and schedules, contour band,
+half-resolution views, held-out split, back-facing faces, checkpoint fingerprint, the held-out model selection
+and the final garment / back-face selection. Every backend's ``fit_splats``
 uses these, so the fits follow :class:`pgc.pipeline.settings_splats.FitSplatsSettings` identically.
 
 Schedules take the fraction ``p`` in [0, 1] of the fit done: ``step / iterations`` with a fixed step count, or
@@ -11,16 +12,40 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-from typing import Any, Callable
+from typing import Any, Callable, Sequence, TypeVar
 
 import numpy as np
 
+from pgc.errors import PGCDataError
 from pgc.pipeline.settings_splats import FitSplatsSettings
-from pgc.types import Camera, Capture, Mesh
+from pgc.types import Camera, Capture, Mesh, View
 
+V = TypeVar("V")
 PAPER_ITERATIONS = 30000
 COUNT_FRACTIONS = (0.3, 0.45, 0.6, 0.8)
 """Top-contribution fractions tried (smallest first) when choosing the Gaussian count."""
+REST_LR_FACTOR = 1 / 20
+"""3DGS: SH coefficients above the DC term learn this much slower than ``lr_other``."""
+CURVE_POINTS = 10
+"""Held-out PSNR is recorded about this many times over a fit (the time-to-PSNR curve)."""
+
+
+def require_labels(mesh: Mesh, s: FitSplatsSettings) -> None:
+    """Raise :class:`PGCDataError` when ``keep = 'garment'`` but ``mesh`` has no face labels."""
+    if s.keep == "garment" and mesh.face_labels is None:
+        raise PGCDataError(f"fit_splats: mesh '{mesh.name}' has no face_labels, so the garment's Gaussians cannot "
+                           "be selected; label the faces or set stages.fit_splats.keep = 'all'")
+
+
+def progress(step: int, seconds: float, s: FitSplatsSettings) -> float:
+    """Fraction of the fit done: ``step / iterations`` with a fixed count, else ``seconds / time_budget_s``
+    (clamped to 1)."""
+    return step / s.iterations if s.iterations else min(1.0, seconds / s.time_budget_s)
+
+
+def finished(step: int, p: float, s: FitSplatsSettings) -> bool:
+    """Whether the optimisation is over after ``step`` steps at progress ``p`` (``max_iterations`` caps both modes)."""
+    return (step >= s.iterations if s.iterations else p >= 1.0) or step >= s.max_iterations
 
 
 def initial_count(capture: Capture, s: FitSplatsSettings) -> int:
@@ -56,6 +81,31 @@ def outside_band(mask: np.ndarray, band: float) -> np.ndarray:
     square = np.ones((side, side), bool)
     ring = binary_dilation(m, square) != binary_erosion(m, square, border_value=1)
     return (~ring).astype(np.float32)
+
+
+def half_resolution(view: View) -> View:
+    """``view`` at half the resolution (camera scaled by 0.5; image, mask and background area-averaged), for
+    the coarse phase of the fit (``coarse_fraction``)."""
+    import cv2
+
+    camera = view.camera.scaled(0.5)
+
+    def shrink(a: np.ndarray | None) -> np.ndarray | None:
+        size = (camera.width, camera.height)
+        return None if a is None else cv2.resize(np.asarray(a, np.float32), size, interpolation=cv2.INTER_AREA)
+
+    return View(camera, shrink(view.image), mask=shrink(view.mask), background=shrink(view.background))
+
+
+def training_view(train: Sequence[V], order: list[int], rng: np.random.Generator, p: float,
+                  s: FitSplatsSettings) -> V:
+    """The next training view at progress ``p``: views come in random permutations (epochs; ``order``, the rest
+    of the current one, is consumed from the end and refilled from ``rng``; both live in checkpoints), and
+    during the first ``coarse_fraction`` of the fit as their half-resolution copy (the view's ``coarse``)."""
+    if not order:
+        order.extend(int(i) for i in rng.permutation(len(train)))
+    view = train[order.pop()]
+    return view.coarse if p < s.coarse_fraction else view
 
 
 def heldout_split(n_views: int, every: int) -> tuple[list[int], list[int]]:
@@ -112,3 +162,19 @@ def select_model(contributions: np.ndarray, evaluate: Callable[[np.ndarray, int]
     figures["sh_degree"] = degree
     figures["psnr_heldout"] = evaluate(keep, degree) if has_heldout else float("nan")
     return keep, degree
+
+
+def final_keep(keep: np.ndarray, parent: np.ndarray, mesh: Mesh, cameras: list[Camera], s: FitSplatsSettings,
+               garment_ids: list[int], figures: dict[str, Any]) -> np.ndarray:
+    """After :func:`select_model`: drop Gaussians of back-facing faces (``drop_backfacing``), then keep the
+    garment's (``keep = 'garment'``). ``parent`` (N,) face of each Gaussian; records counts in ``figures``."""
+    keep = keep.copy()
+    if s.drop_backfacing:
+        back = backfacing_faces(mesh, cameras)[parent]
+        figures["dropped_backfacing"] = int((keep & back).sum())
+        keep &= ~back
+    figures["gaussians_selected"] = int(keep.sum())
+    if s.keep == "garment":
+        keep &= np.isin(mesh.face_labels, garment_ids)[parent]
+    figures["gaussians"] = int(keep.sum())
+    return keep

@@ -72,35 +72,14 @@ def texel_positions(mesh: Mesh, size: int) -> tuple[np.ndarray, np.ndarray]:
     coverage; uncovered texels take the position of the nearest covered texel (seam padding)."""
     from scipy.ndimage import distance_transform_edt
 
+    from pgc.texture.atlas import texel_geometry
+
     if mesh.uv is None:
         raise PGCDataError(f"mesh '{mesh.name}' has no UVs; the fabric textures need a UV atlas")
-    pos = np.zeros((size, size, 3))
-    covered = np.zeros((size, size), bool)
-    uv_px = np.stack([mesh.uv[:, 0] * size, (1.0 - mesh.uv[:, 1]) * size], axis=1).astype(np.float64)
-    for f, fu in zip(mesh.faces, mesh.face_uv):
-        p = uv_px[fu]
-        x0, y0 = np.floor(np.maximum(p.min(axis=0) - 0.5, 0)).astype(int)
-        x1, y1 = np.ceil(np.minimum(p.max(axis=0) + 0.5, size)).astype(int)
-        if x1 <= x0 or y1 <= y0:
-            continue
-        ys, xs = np.mgrid[y0:y1, x0:x1] + 0.5
-        d = np.array([p[1] - p[0], p[2] - p[0]])
-        det = d[0, 0] * d[1, 1] - d[0, 1] * d[1, 0]
-        if abs(det) < 1e-12:
-            continue
-        rx, ry = xs - p[0, 0], ys - p[0, 1]
-        b1 = (rx * d[1, 1] - ry * d[1, 0]) / det
-        b2 = (ry * d[0, 0] - rx * d[0, 1]) / det
-        inside = (b1 >= -1e-6) & (b2 >= -1e-6) & (b1 + b2 <= 1 + 1e-6)
-        if not inside.any():
-            continue
-        v = mesh.vertices[f]
-        pts = v[0] + b1[..., None] * (v[1] - v[0]) + b2[..., None] * (v[2] - v[0])
-        iy, ix = np.nonzero(inside)
-        pos[iy + y0, ix + x0] = pts[iy, ix]
-        covered[iy + y0, ix + x0] = True
+    geom = texel_geometry(mesh, size, size)
+    covered = geom.valid
     _, (ny, nx) = distance_transform_edt(~covered, return_indices=True)
-    return pos[ny, nx], covered
+    return geom.position[ny, nx], covered
 
 
 def _smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:

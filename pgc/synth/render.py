@@ -24,6 +24,7 @@ import numpy as np
 
 from pgc.errors import PGCDataError
 from pgc.synth.fabrics import Fibres
+from pgc.texture.sample import sample_uv
 from pgc.types import Camera, Light, Material, Mesh
 
 SKIN_ALBEDO = (0.56, 0.38, 0.29)
@@ -118,9 +119,11 @@ def build_scene(geometry: SceneGeometry | None, light: Light, max_depth: int = 8
         g = geometry.garment
         if len(geometry.body_faces):
             scene["body"] = mesh_to_mitsuba(geometry.body_vertices, geometry.body_faces, name="body",
+                                            vertex_normals=True,
                                             bsdf=mi.load_dict({"type": "diffuse", "reflectance": {
                                                 "type": "rgb", "value": list(geometry.skin_albedo)}}))
         scene["garment"] = mesh_to_mitsuba(g.vertices, g.faces, name="garment", uv=g.uv, face_uv=g.face_uv,
+                                           vertex_normals=True,
                                            bsdf=mi.load_dict(garment_bsdf(geometry.material, geometry.normal_map)))
         labels = {"body": LABEL_BODY, "garment": LABEL_GARMENT}
         if geometry.fibres is not None:
@@ -190,7 +193,7 @@ def ground_truth_layers(scene: Any, labels: dict[str, int], geometry: SceneGeome
         on_fibre = np.array(si.shape == mi.ShapePtr(fibre_ptr[0]), dtype=bool) & valid
         albedo[on_fibre] = geometry.fibres.color
         surface &= ~on_fibre
-    albedo[surface] = sample_texture(geometry.material.base_color, uv[surface]) \
+    albedo[surface] = sample_uv(geometry.material.base_color, uv[surface]) \
         if geometry.material.base_color is not None else geometry.material.params.get("base_color", 0.5)
     label, z, albedo, valid = (label.reshape(h, w, n), z.reshape(h, w, n), albedo.reshape(h, w, n, 3),
                                valid.reshape(h, w, n))
@@ -204,14 +207,3 @@ def ground_truth_layers(scene: Any, labels: dict[str, int], geometry: SceneGeome
             "depth": (z.sum(axis=2) / safe).astype(np.float32),
             "garment_coverage": (counts[..., LABEL_GARMENT] / n).astype(np.float32)}
 
-
-def sample_texture(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Bilinear lookup of an (H, W, C) texture at (N, 2) uv (v up, texel centres at +0.5, clamped)."""
-    h, w = texture.shape[:2]
-    x = np.clip(uv[:, 0] * w - 0.5, 0, w - 1)
-    y = np.clip((1 - uv[:, 1]) * h - 0.5, 0, h - 1)
-    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
-    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
-    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
-    t = texture.astype(np.float64)
-    return ((t[y0, x0] * (1 - fx) + t[y0, x1] * fx) * (1 - fy) + (t[y1, x0] * (1 - fx) + t[y1, x1] * fx) * fy)

@@ -23,7 +23,7 @@ import numpy as np
 
 from pgc.errors import PGCDataError
 from pgc.events import Reporter
-from pgc.geometry.dense import dense_points, poisson_depth_for, trim_outside
+from pgc.geometry.dense import dense_points, hull_fill_points, poisson_depth_for, trim_outside
 from pgc.geometry.hull import _axis_centre
 from pgc.geometry.stereo import depth_normals, select_neighbours
 from pgc.roles.reconstructor import Reconstruction, Reconstructor
@@ -147,6 +147,25 @@ def fuse_depth_maps(capture: Capture, depths: list[np.ndarray], root: Path, name
     return fused
 
 
+def add_hull_points(fused: Path, dense: Any, opt: ColmapReconstructorOptions) -> tuple[int, int]:
+    """Rewrite COLMAP's fused point cloud (x y z nx ny nz) with the visual hull's points added where fusion
+    found nothing (``hull_fill``); returns (fused, added) point counts."""
+    import trimesh
+
+    cloud = trimesh.load(fused, file_type="ply", process=False)
+    raw = cloud.metadata["_ply_raw"]["vertex"]["data"]
+    pts = np.stack([raw["x"], raw["y"], raw["z"]], 1).astype(np.float64)
+    nrm = np.stack([raw["nx"], raw["ny"], raw["nz"]], 1).astype(np.float64)
+    hp, hn = hull_fill_points(dense.hull, pts, dense.footprint) if opt.hull_fill else (np.zeros((0, 3)), np.zeros((0, 3)))
+    data = np.concatenate([np.concatenate([pts, hp]), np.concatenate([nrm, hn])], 1).astype("<f4")
+    header = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(data)}\n"
+              + "".join(f"property float {n}\n" for n in ("x", "y", "z", "nx", "ny", "nz")) + "end_header\n")
+    with open(fused, "wb") as f:
+        f.write(header.encode())
+        data.tofile(f)
+    return len(pts), len(hp)
+
+
 class ColmapReconstructor(Reconstructor):
     Options = ColmapReconstructorOptions
 
@@ -179,8 +198,9 @@ class ColmapReconstructor(Reconstructor):
             with reporter.stage("mesh.colmap_poisson"):
                 po = pycolmap.PoissonMeshingOptions()
                 po.trim = float(opt.poisson_trim)
-                po.depth = int(opt.poisson_depth or poisson_depth_for(dense.points, dense.footprint))
+                po.depth = int(opt.poisson_depth or poisson_depth_for(dense.points, opt.poisson_cell_px * dense.footprint))
                 meshed = root / "meshed.ply"
+                figures["fused_points"], figures["hull_points"] = add_hull_points(fused, dense, opt)
                 pycolmap.poisson_meshing(fused, meshed, po)
                 if not meshed.is_file():
                     raise PGCDataError("COLMAP's Poisson meshing produced no mesh (too few fused points: check the "

@@ -39,7 +39,7 @@ class Open3DReconstructor(Reconstructor):
         dense = dense_points(capture, opt, reporter)
         t1 = time.perf_counter()
         with reporter.stage("mesh.poisson"):
-            depth = opt.poisson_depth or poisson_depth_for(dense.points, dense.footprint)
+            depth = opt.poisson_depth or poisson_depth_for(dense.points, opt.poisson_cell_px * dense.footprint)
             v, f = poisson_surface(dense.points, dense.normals, depth, opt.density_quantile)
             v, f = trim_outside(v, f, dense.field(v) <= opt.hull_margin_px * dense.footprint)
         t2 = time.perf_counter()

@@ -1,11 +1,14 @@
-"""The mesh-embedded splat fit (METHOD.md section 2) on the JAX rasteriser; same loss, schedule, settings and
-model selection as the torch fit (``pgc.pipeline.settings_splats.FitSplatsSettings``).
+"""The mesh-embedded splat fit (METHOD.md section 2) on the JAX rasteriser; same loss, schedules, settings and
+model selection as the torch fit (``pgc.pipeline.settings_splats.FitSplatsSettings``), all backend-neutral
+parts from :mod:`pgc.splats.fitplan`.
 
 Initialise by uniform triangle point picking on the full mesh, optimise ``0.8 L1 + 0.2 (1 - SSIM)`` on
 sRGB-encoded whole images blended over the background plus the mask loss outside the contour band, with Adam
-(paper learning rates, exponential position decay) and the SH degree raised on a schedule. Then prune
-Gaussians that contribute nothing, keep the smallest top-contribution subset and the lowest SH degree whose
-held-out PSNR is within a margin, optionally drop back-facing faces' Gaussians, keep the garment's.
+(paper learning rates times ``lr_scale``, exponential position decay, higher SH bands 20x slower), half-resolution
+images for the first ``coarse_fraction`` of the fit and the SH degree raised on a schedule; the schedules follow
+the fraction of the fit done (steps, or time in auto mode). Then prune Gaussians that contribute nothing, keep
+the smallest top-contribution subset and the lowest SH degree whose held-out PSNR is within a margin, optionally
+drop back-facing faces' Gaussians, keep the garment's.
 
 XLA specifics: one jitted training step serves every SH degree (higher coefficients are masked, not sliced)
 and every view of one image size; chunk tables are padded to a capacity that only grows (by >= 25 %), so a
@@ -26,24 +29,24 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from pgc.errors import PGCDataError
 from pgc.events import Reporter
 from pgc.io.atomic import atomic_path
 from pgc.metrics.psnr import psnr
 from pgc.pipeline.settings_splats import FitSplatsSettings
 from pgc.roles.splat_renderer import SplatFit
 from pgc.splats.binding import triangle_frames as np_triangle_frames
+from pgc.splats.fitplan import (CURVE_POINTS, REST_LR_FACTOR, auto_lr_factor, final_keep, fingerprint, finished,
+                                half_resolution, heldout_split, initial_count, outside_band, position_lr_at,
+                                progress, require_labels, select_model, sh_degree_at, training_view)
 from pgc.splats.init import sample_on_mesh
 from pgc.splats.reference import background_image
-from pgc.types import Capture, GaussianSet, Mesh
-from pgc_jax.splat import plan
+from pgc.types import Capture, GaussianSet, Mesh, View
 from pgc_jax.splat.binding import apply_frames
 from pgc_jax.splat.binning import Bins, bucket
 from pgc_jax.splat.losses import linear_to_srgb, ssim
 from pgc_jax.splat.render import CameraArrays, camera_arrays, make_bins, render_bound
 
 CALIBRATION_STEPS = 8
-COUNT_FRACTIONS = (0.3, 0.45, 0.6, 0.8)
 NAMES = ("means", "quats", "log_scales", "opacity_logits", "sh")
 ADAM_B1, ADAM_B2, ADAM_EPS = 0.9, 0.999, 1e-15
 
@@ -57,19 +60,35 @@ class _View:
     background: jnp.ndarray    # (H, W, 3) linear
     mask: jnp.ndarray          # (H, W) (zeros when the view has none)
     band: jnp.ndarray          # (H, W) mask-loss weights: 1 outside the contour band (zeros without a mask)
+    coarse: "_View | None" = None  # the same view at half resolution
+
+
+def _view(v: View, band: float, dtype) -> _View:
+    h, w = v.camera.height, v.camera.width
+    bg = jnp.asarray(background_image(v.background, h, w), dtype)
+    mask = np.zeros((h, w), np.float32) if v.mask is None else v.mask
+    weight = np.zeros((h, w), np.float32) if v.mask is None else outside_band(v.mask, band)
+    return _View(v.camera, camera_arrays(v.camera, dtype), v.image, linear_to_srgb(jnp.asarray(v.image, dtype)), bg,
+                 jnp.asarray(mask, dtype), jnp.asarray(weight, dtype))
 
 
 def _prepare(capture: Capture, band: float, dtype) -> list[_View]:
+    """Training arrays of every view, with a half-resolution copy for the coarse phase."""
     views = []
     for v in capture.views:
-        h, w = v.camera.height, v.camera.width
-        bg = jnp.asarray(background_image(v.background, h, w), dtype)
-        mask = np.zeros((h, w), np.float32) if v.mask is None else v.mask
-        weight = np.zeros((h, w), np.float32) if v.mask is None else plan.outside_band(v.mask, band)
-        views.append(_View(v.camera, camera_arrays(v.camera, dtype), v.image,
-                           linear_to_srgb(jnp.asarray(v.image, dtype)), bg, jnp.asarray(mask, dtype),
-                           jnp.asarray(weight, dtype)))
+        full = _view(v, band, dtype)
+        full.coarse = _view(half_resolution(v), band, dtype)
+        views.append(full)
     return views
+
+
+def _learning_rates(p: float, factor: float, n_sh: int, s: FitSplatsSettings) -> dict[str, Any]:
+    """Adam learning rates at progress ``p``, all times ``factor``; the SH one is (n_sh, 1): the DC term at
+    ``lr_other``, higher bands ``REST_LR_FACTOR`` times that."""
+    lrs: dict[str, Any] = {n: factor * s.lr_other for n in NAMES}
+    lrs["means"] = factor * position_lr_at(p, s)
+    lrs["sh"] = np.where(np.arange(n_sh)[:, None] == 0, 1.0, REST_LR_FACTOR) * (factor * s.lr_other)
+    return lrs
 
 
 def _sh_mask(degree: int, dtype) -> jnp.ndarray:
@@ -164,6 +183,14 @@ class _Model:
             return self.bins(view, keep)
         return b
 
+    def reserve(self, views: list[_View], headroom: float = 1.25) -> None:
+        """Set each image size's chunk capacity to ``headroom`` x the most any of ``views`` needs now, so that
+        the training loop starts with the capacity it will mostly keep (one compilation, not one per growth)."""
+        for v in views:
+            b = self.bins(v)
+            size = (v.camera.width, v.camera.height)
+            self.capacity[size] = max(self.capacity[size], bucket(int(headroom * b.n_chunks) + 1))
+
     def kw(self, view: _View) -> dict[str, Any]:
         return dict(width=view.camera.width, height=view.camera.height, tile=self.tile, near=self.near)
 
@@ -226,114 +253,84 @@ def fit_splats(renderer, capture: Capture, mesh: Mesh, settings: FitSplatsSettin
     """Fit mesh-embedded Gaussians on ``mesh`` (the full body mesh) to ``capture``; see the module docstring."""
     s = settings if isinstance(settings, FitSplatsSettings) else FitSplatsSettings.model_validate(settings or {})
     reporter = reporter or Reporter.silent()
-    if s.keep == "garment" and mesh.face_labels is None:
-        raise PGCDataError(f"fit_splats: mesh '{mesh.name}' has no face_labels, so the garment's Gaussians cannot "
-                           "be selected; label the faces or set stages.fit_splats.keep = 'all'")
+    require_labels(mesh, s)
     dtype = renderer.dtype
     views = _prepare(capture, s.mask_band, dtype)
-    train_idx, held_idx = plan.heldout_split(len(views), s.holdout_every)
+    train_idx, held_idx = heldout_split(len(views), s.holdout_every)
     train, held = [views[i] for i in train_idx], [views[i] for i in held_idx]
     rng = np.random.default_rng(s.seed)
-    count = plan.initial_count(capture, s)
+    count = initial_count(capture, s)
     model = _Model(renderer, sample_on_mesh(mesh, count, rng, s.max_sh_degree), mesh)
     adam = {"m": {n: jnp.zeros_like(t) for n, t in model.params.items()},
             "v": {n: jnp.zeros_like(t) for n, t in model.params.items()}}
 
     ckpt = Path(s.checkpoint_dir) / "fit_splats_jax.npz" if s.checkpoint_dir else None
-    fp = plan.fingerprint(capture, mesh, s, "jax")
-    step, total, elapsed, curve, order = 0, s.iterations or None, 0.0, [], []
+    fp = fingerprint(capture, mesh, s, "jax")
+    step, elapsed, curve, order = 0, 0.0, [], []
+    lr_factor = s.lr_scale or (auto_lr_factor(s.iterations) if s.iterations else None)
     loaded = _load_checkpoint(ckpt, fp) if ckpt is not None else None
     if loaded is not None:
         params, state, meta = loaded
         model.params = {n: jnp.asarray(a, dtype) for n, a in params.items()}
         adam = {k: {n: jnp.asarray(a, dtype) for n, a in d.items()} for k, d in state.items()}
-        step, total, elapsed, curve, order = meta["step"], meta["total"], meta["elapsed"], meta["curve"], meta["order"]
+        step, elapsed, curve, order, lr_factor = (meta["step"], meta["elapsed"], meta["curve"], meta["order"],
+                                                  meta["lr_factor"])
         rng.bit_generator.state = meta["rng"]
 
     lambdas = dict(lambda_l1=float(s.lambda_l1), lambda_mask=float(s.lambda_mask))
+    n_sh = model.params["sh"].shape[1]
+    model.reserve(views + [v.coarse for v in views])
     start = time.perf_counter() - elapsed
+    p = progress(step, elapsed, s)
+    next_curve = len(curve) / CURVE_POINTS
     calib_from = None
-    with reporter.stage("fit_splats", total=total, gaussians=count, views=len(train), heldout=len(held)) as st:
-        while total is None or step < total:
-            if not order:
-                order = [int(i) for i in rng.permutation(len(train))]
-            view = train[order.pop()]
-            degree = plan.sh_degree_at(step, total, s)
-            lrs = {n: float(s.lr_other) for n in NAMES}
-            lrs["means"] = plan.position_lr_at(step, total, s)
+    with reporter.stage("fit_splats", total=s.iterations or None, gaussians=count, views=len(train),
+                        heldout=len(held)) as st:
+        while not finished(step, p, s):
+            view = training_view(train, order, rng, p, s)
+            degree = sh_degree_at(p, s)
             b = model.bins(view)
             model.params, adam, loss, pred = _train_step(
-                model.params, adam, float(step), lrs, model.frames, model.parent, _sh_mask(degree, dtype),
-                view.cam, view.background, view.target, view.mask, view.band, b.gauss, b.tile, b.first,
-                **model.kw(view), **lambdas)
+                model.params, adam, float(step), _learning_rates(p, lr_factor or 1.0, n_sh, s), model.frames,
+                model.parent, _sh_mask(degree, dtype), view.cam, view.background, view.target, view.mask, view.band,
+                b.gauss, b.tile, b.first, **model.kw(view), **lambdas)
             step += 1
-            if total is None:
-                loss.block_until_ready()
-                if calib_from is None:        # the first step compiles: calibrate on the following ones
-                    calib_from = (step, time.perf_counter())
+            if not s.iterations:
+                loss.block_until_ready()      # time drives the schedules: count the step's real duration
+            now = time.perf_counter() - start
+            p = progress(step, now, s)
+            if lr_factor is None:             # auto: lr factor from the step count the budget allows
+                if calib_from is None:        # the first step compiles: time the following ones
+                    calib_from = (step, now)
                 elif step - calib_from[0] == CALIBRATION_STEPS:
-                    now = time.perf_counter()
                     per_step = (now - calib_from[1]) / CALIBRATION_STEPS
-                    left = s.time_budget_s - (now - start)
-                    total = int(np.clip(step + left / per_step, step, s.max_iterations))
-                    st.progress(step, total)
-            if step % s.log_every == 0 or step == total:
+                    expected = step + max(0.0, s.time_budget_s - now) / max(per_step, 1e-9)
+                    lr_factor = auto_lr_factor(min(expected, s.max_iterations))
+            done = finished(step, p, s)
+            if step % s.log_every == 0 or done:
                 train_psnr = -10.0 * math.log10(max(float(jnp.mean((pred - view.target) ** 2)), 1e-20))
-                figures = {"loss": float(loss), "psnr_train_view": train_psnr,
-                           "sh_degree": plan.sh_degree_at(step, total, s)}
-                if step % (s.log_every * 8) == 0 or step == total:
+                figures = {"loss": float(loss), "psnr_train_view": train_psnr, "sh_degree": sh_degree_at(p, s),
+                           "progress": p}
+                if p >= next_curve or done:
+                    next_curve = math.floor(p * CURVE_POINTS + 1) / CURVE_POINTS
                     figures["psnr_heldout"] = heldout_psnr(model, held, figures["sh_degree"])
                     curve.append({"seconds": time.perf_counter() - start, "iteration": step,
                                   "psnr_heldout": figures["psnr_heldout"]})
-                st.progress(step, total, **figures)
-            if ckpt is not None and (step % s.checkpoint_every == 0 or step == total):
+                st.progress(step, s.iterations or None, **figures)
+            if ckpt is not None and (step % s.checkpoint_every == 0 or done):
                 _save_checkpoint(ckpt, model, adam, {
-                    "fingerprint": fp, "step": step, "total": total, "curve": curve, "order": order,
+                    "fingerprint": fp, "step": step, "curve": curve, "order": order, "lr_factor": lr_factor,
                     "elapsed": time.perf_counter() - start, "rng": rng.bit_generator.state})
         fit_seconds = time.perf_counter() - start
-        final_degree = plan.sh_degree_at(step, total, s)
+        final_degree = sh_degree_at(p, s)
         figures: dict[str, Any] = {"iterations": step, "initial_gaussians": count, "fit_seconds": fit_seconds,
                                    "time_to_psnr": curve, "views_train": len(train), "views_heldout": len(held),
-                                   "chunk_capacity_changes": model.compiles}
-        keep, degree = _model_selection(model, mesh, train, held, final_degree, s, capture.garment_label_ids, figures)
+                                   "lr_factor": lr_factor or 1.0, "chunk_capacity_changes": model.compiles}
+        contrib = model.contributions(train, final_degree)
+        keep, degree = select_model(contrib, lambda k, d: heldout_psnr(model, held, d, k), final_degree, bool(held),
+                                    s, figures)
+        keep = final_keep(keep, np.asarray(model.parent), mesh, [v.camera for v in train], s,
+                          capture.garment_label_ids, figures)
         figures["selection_seconds"] = time.perf_counter() - start - fit_seconds
         st.record(**{k: v for k, v in figures.items() if k != "time_to_psnr"})
     return SplatFit(gaussians=model.gaussians(keep, degree), figures=figures)
-
-
-def _model_selection(model: _Model, mesh: Mesh, train: list[_View], held: list[_View], degree: int,
-                     s: FitSplatsSettings, garment_ids: list[int], figures: dict[str, Any]) -> tuple[np.ndarray, int]:
-    """Prune, choose the count and SH degree on held-out views, drop back-facing and non-garment Gaussians."""
-    contrib = model.contributions(train, degree)
-    keep = contrib >= s.prune_weight
-    figures["pruned_no_contribution"] = int((~keep).sum())
-    base = heldout_psnr(model, held, degree, keep)
-    figures["psnr_heldout_full"] = base
-    if s.select_count and held:
-        ranked = np.argsort(-contrib)
-        tried = {}
-        for frac in COUNT_FRACTIONS:
-            subset = np.zeros_like(keep)
-            subset[ranked[:int(round(frac * keep.sum()))]] = True
-            tried[frac] = heldout_psnr(model, held, degree, subset)
-            if tried[frac] >= base - s.margin_db:
-                keep = subset
-                break
-        figures["count_selection"] = {str(k): v for k, v in tried.items()}
-    if s.select_sh and held:
-        by_degree = {d: heldout_psnr(model, held, d, keep) for d in range(degree + 1)}
-        best = max(by_degree.values())
-        degree = min(d for d, v in by_degree.items() if v >= best - s.margin_db)
-        figures["sh_selection"] = {str(k): v for k, v in by_degree.items()}
-    figures["sh_degree"] = degree
-    figures["psnr_heldout"] = heldout_psnr(model, held, degree, keep)
-    parent = np.asarray(model.parent)
-    if s.drop_backfacing:
-        back = plan.backfacing_faces(mesh, [v.camera for v in train])[parent]
-        figures["dropped_backfacing"] = int((keep & back).sum())
-        keep &= ~back
-    figures["gaussians_selected"] = int(keep.sum())
-    if s.keep == "garment":
-        keep &= np.isin(mesh.face_labels, garment_ids)[parent]
-    figures["gaussians"] = int(keep.sum())
-    return keep, degree

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import contextlib
+
 import jax
 import jax.numpy as jnp
 import numpy as np

@@ -43,17 +43,20 @@ class TorchPBRRenderer(PBRRenderer):
     def _offset(self, mesh: Mesh) -> float:
         return self.options.ray_offset * (float(np.linalg.norm(np.ptp(mesh.vertices, axis=0))) or 1.0)
 
-    def _vertex_visibility(self, mesh: Mesh, directions: np.ndarray) -> np.ndarray:
-        """Per-vertex visibility, cached for the last mesh geometry (views of one frame share it)."""
-        key = mesh.vertices.tobytes() + mesh.faces.tobytes() + directions.tobytes()
+    def _vertex_visibility(self, mesh: Mesh, directions: np.ndarray, scene: Mesh) -> np.ndarray:
+        """Per-vertex visibility against ``scene`` (the mesh and any occluder), cached for the last geometry
+        (views of one frame share it)."""
+        key = mesh.vertices.tobytes() + scene.vertices.tobytes() + scene.faces.tobytes() + directions.tobytes()
         if self._vis_cache is None or self._vis_cache[0] != key:
-            vis = visibility(mesh, mesh.vertices, mesh.vertex_normals(), directions, self._offset(mesh))
+            vis = visibility(scene, mesh.vertices, mesh.vertex_normals(), directions, self._offset(mesh))
             self._vis_cache = (key, vis)
         return self._vis_cache[1]
 
-    def _surface(self, mesh: Mesh, face: np.ndarray, bary: np.ndarray, directions: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Positions, unit shading normals and visibility (P, n) at barycentric points of faces."""
+    def _surface(self, mesh: Mesh, face: np.ndarray, bary: np.ndarray, directions: np.ndarray,
+                 occluder: Mesh | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Positions, unit shading normals and visibility (P, n) at barycentric points of faces; visibility
+        is ray cast against the mesh and ``occluder``."""
+        scene = mesh if occluder is None else _merged(mesh, occluder)
         corners = mesh.faces[face]
         points = np.einsum("pk,pkc->pc", bary, mesh.vertices[corners])
         if self.options.smooth_normals:
@@ -62,9 +65,9 @@ class TorchPBRRenderer(PBRRenderer):
             normals = mesh.face_normals()[face]
         normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
         if self.options.visibility_at == "vertex":
-            vis = np.einsum("pk,pkn->pn", bary, self._vertex_visibility(mesh, directions)[corners])
+            vis = np.einsum("pk,pkn->pn", bary, self._vertex_visibility(mesh, directions, scene)[corners])
         else:
-            vis = visibility(mesh, points, mesh.face_normals()[face], directions, self._offset(mesh))
+            vis = visibility(scene, points, mesh.face_normals()[face], directions, self._offset(mesh))
         return points, normals, vis
 
     # -- shading ------------------------------------------------------------------------------------------
@@ -128,7 +131,7 @@ class TorchPBRRenderer(PBRRenderer):
         return RenderOutput(color=color, alpha=covered.astype(np.float32))
 
     def render_texture(self, mesh: Mesh, material: Material, light: Light, camera: Camera,
-                       resolution: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+                       resolution: tuple[int, int], occluder: Mesh | None = None) -> tuple[np.ndarray, np.ndarray]:
         from pgc.texture.atlas import texel_geometry
         from pgc.texture.sample import sample_uv
 
@@ -136,7 +139,7 @@ class TorchPBRRenderer(PBRRenderer):
         directions = fibonacci_directions(self.options.directions)
         geom = texel_geometry(mesh, height, width)
         valid = geom.valid
-        points, normals, vis = self._surface(mesh, geom.face[valid], geom.bary[valid], directions)
+        points, normals, vis = self._surface(mesh, geom.face[valid], geom.bary[valid], directions, occluder)
         if material.base_color is not None:
             rows, cols = np.nonzero(valid)
             uv = np.stack([(cols + 0.5) / width, 1.0 - (rows + 0.5) / height], axis=1)
@@ -147,6 +150,12 @@ class TorchPBRRenderer(PBRRenderer):
         out[valid] = self._shade(material, light, points, normals, np.broadcast_to(camera.center, points.shape),
                                  base, vis, directions)
         return out, valid.astype(np.float32)
+
+
+def _merged(mesh: Mesh, other: Mesh) -> Mesh:
+    """One mesh holding the faces of both (geometry only), for ray casting."""
+    return Mesh(np.concatenate([mesh.vertices, other.vertices]),
+                np.concatenate([mesh.faces, other.faces + len(mesh.vertices)]))
 
 
 @contextlib.contextmanager

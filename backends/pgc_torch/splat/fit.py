@@ -20,26 +20,24 @@ from typing import Any
 import numpy as np
 import torch
 
-from pgc.errors import PGCDataError
 from pgc.events import Reporter
 from pgc.io.atomic import atomic_path
 from pgc.metrics.psnr import psnr
 from pgc.pipeline.settings_splats import FitSplatsSettings
 from pgc.roles.splat_renderer import SplatFit
-from pgc.splats.fitplan import (auto_lr_factor, backfacing_faces, fingerprint, heldout_split, initial_count,
-                                outside_band, position_lr_at, select_model, sh_degree_at)
+from pgc.splats.fitplan import (CURVE_POINTS, REST_LR_FACTOR, auto_lr_factor, final_keep, fingerprint, finished,
+                                half_resolution, heldout_split, initial_count, outside_band, position_lr_at,
+                                progress, require_labels, select_model, sh_degree_at, training_view)
 from pgc.splats.init import sample_on_mesh
-from pgc.types import Camera, Capture, GaussianSet, Mesh
+from pgc.types import Camera, Capture, GaussianSet, Mesh, View
 
 from .binding import apply_frames, triangle_frames
 from .losses import linear_to_srgb, ssim
 from .rasterizer import background_tensor
 
 CALIBRATION_STEPS = 8
-CURVE_POINTS = 10
 NAMES = ("means", "quats", "log_scales", "opacity_logits", "sh")
 PARAMS = NAMES + ("sh_rest",)
-REST_LR_FACTOR = 1 / 20  # 3DGS: SH bands above the DC term learn 20x slower
 
 
 @dataclass
@@ -53,28 +51,19 @@ class _View:
     coarse: "_View | None" = None  # the same view at half resolution
 
 
-def _view(camera: Camera, image: np.ndarray, background: np.ndarray | None, mask: np.ndarray | None,
-          band: float) -> _View:
-    bg = background_tensor(background, camera.height, camera.width, torch.float32)
-    weight = None if mask is None else torch.as_tensor(outside_band(mask, band))
-    return _View(camera, image, linear_to_srgb(torch.as_tensor(image)), bg,
-                 None if mask is None else torch.as_tensor(mask), weight)
+def _view(v: View, band: float) -> _View:
+    bg = background_tensor(v.background, v.camera.height, v.camera.width, torch.float32)
+    weight = None if v.mask is None else torch.as_tensor(outside_band(v.mask, band))
+    return _View(v.camera, v.image, linear_to_srgb(torch.as_tensor(v.image)), bg,
+                 None if v.mask is None else torch.as_tensor(v.mask), weight)
 
 
 def _prepare(capture: Capture, band: float) -> list[_View]:
     """Training tensors of every view, with a half-resolution copy (area-averaged) for the coarse phase."""
-    import cv2
-
     views = []
     for v in capture.views:
-        full = _view(v.camera, v.image, v.background, v.mask, band)
-        small = v.camera.scaled(0.5)
-        size = (small.width, small.height)
-
-        def shrink(a: np.ndarray | None) -> np.ndarray | None:
-            return None if a is None else cv2.resize(np.asarray(a, np.float32), size, interpolation=cv2.INTER_AREA)
-
-        full.coarse = _view(small, shrink(v.image), shrink(v.background), shrink(v.mask), band)
+        full = _view(v, band)
+        full.coarse = _view(half_resolution(v), band)
         views.append(full)
     return views
 
@@ -154,9 +143,7 @@ def _fit(renderer, capture: Capture, mesh: Mesh, settings: FitSplatsSettings | d
          reporter: Reporter | None) -> SplatFit:
     s = settings if isinstance(settings, FitSplatsSettings) else FitSplatsSettings.model_validate(settings or {})
     reporter = reporter or Reporter.silent()
-    if s.keep == "garment" and mesh.face_labels is None:
-        raise PGCDataError(f"fit_splats: mesh '{mesh.name}' has no face_labels, so the garment's Gaussians cannot "
-                           "be selected; label the faces or set stages.fit_splats.keep = 'all'")
+    require_labels(mesh, s)
     views = _prepare(capture, s.mask_band)
     train_ids, held_ids = heldout_split(len(views), s.holdout_every)
     train, held = [views[i] for i in train_ids], [views[i] for i in held_ids]
@@ -184,10 +171,6 @@ def _fit(renderer, capture: Capture, mesh: Mesh, settings: FitSplatsSettings | d
                                                       state["lr_factor"])
             rng.bit_generator.state = state["rng"]
 
-    def progress(now: float) -> float:
-        """Fraction of the fit done: by steps with a fixed count, by time with the time budget."""
-        return step / s.iterations if s.iterations else min(1.0, now / s.time_budget_s)
-
     def degree_at(p: float) -> int:
         return sh_degree_at(p, s)
 
@@ -198,16 +181,12 @@ def _fit(renderer, capture: Capture, mesh: Mesh, settings: FitSplatsSettings | d
             group["lr"] = scale * base_lr[group["name"]]
 
     start, cpu_start = time.perf_counter() - elapsed, time.process_time()
-    p = progress(elapsed)
+    p = progress(step, elapsed, s)
     next_curve = len(curve) / CURVE_POINTS
     with reporter.stage("fit_splats", total=s.iterations or None, gaussians=count, views=len(train),
                         heldout=len(held)) as st:
-        while (step < s.iterations if s.iterations else p < 1.0) and step < s.max_iterations:
-            if not order:
-                order = [int(i) for i in rng.permutation(len(train))]
-            view = train[order.pop()]
-            if p < s.coarse_fraction:
-                view = view.coarse
+        while not finished(step, p, s):
+            view = training_view(train, order, rng, p, s)
             set_lr(p)
             color, alpha, _ = _render(renderer, model, view, degree_at(p))
             pred = linear_to_srgb(color)
@@ -219,10 +198,10 @@ def _fit(renderer, capture: Capture, mesh: Mesh, settings: FitSplatsSettings | d
             optim.step()
             step += 1
             now = time.perf_counter() - start
-            p = progress(now)
+            p = progress(step, now, s)
             if lr_factor is None and step == CALIBRATION_STEPS:
                 lr_factor = auto_lr_factor(step / max(p, 1e-9))  # steps the budget is expected to allow
-            done = p >= 1.0 or step == s.iterations
+            done = finished(step, p, s)
             if step % s.log_every == 0 or done:
                 train_psnr = -10.0 * math.log10(max(float(((pred.detach() - view.target) ** 2).mean()), 1e-20))
                 figures = {"loss": float(loss.detach()), "psnr_train_view": train_psnr, "sh_degree": degree_at(p),
@@ -259,13 +238,4 @@ def _model_selection(renderer, model: _Model, mesh: Mesh, train: list[_View], he
     contrib = _contributions(renderer, model, train, degree)
     keep, degree = select_model(contrib, lambda k, d: heldout_psnr(renderer, model, held, d, torch.as_tensor(k)),
                                 degree, bool(held), s, figures)
-    parent = model.parent.numpy()
-    if s.drop_backfacing:
-        back = backfacing_faces(mesh, [v.camera for v in train])[parent]
-        figures["dropped_backfacing"] = int((keep & back).sum())
-        keep &= ~back
-    figures["gaussians_selected"] = int(keep.sum())
-    if s.keep == "garment":
-        keep &= np.isin(mesh.face_labels, garment_ids)[parent]
-    figures["gaussians"] = int(keep.sum())
-    return keep, degree
+    return final_keep(keep, model.parent.numpy(), mesh, [v.camera for v in train], s, garment_ids, figures), degree

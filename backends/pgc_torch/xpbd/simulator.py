@@ -6,7 +6,14 @@ import numpy as np
 import torch
 
 from pgc.sim.driver import Stepper, XPBDSimulator
-from pgc.sim.kernels import ArrayOps, FrameInput, Statics, StepSettings, advance_frame, python_loop
+from pgc.sim.kernels import (
+    ArrayOps,
+    FrameInput,
+    Statics,
+    StepSettings,
+    advance_frame,
+    python_loop,
+)
 from pgc.sim.model import ClothModel
 from pgc.sim.options import XPBDOptions
 

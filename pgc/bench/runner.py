@@ -1,0 +1,90 @@
+"""Run a bench matrix and write bench.json, the per-run detail files, bench.csv, plots and bench.html."""
+
+from __future__ import annotations
+
+import importlib
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+from pgc.bench import records as rec
+from pgc.bench.matrix import load_matrix
+from pgc.bench.measure import versions
+from pgc.bench.workloads import Context
+from pgc.events import Reporter
+
+DETAILS = "details"
+
+
+def synthetic_capture(out: Path, preset: str, reporter: Reporter) -> str:
+    """The synthetic capture of ``preset`` in ``out/capture-PRESET`` (generated once; reused when complete)."""
+    from pgc.synth.generate import generate
+
+    root = out / f"capture-{preset}"
+    if not (root / "transforms.json").is_file() or not (root / "ground_truth" / "full.ply").is_file():
+        generate(root, preset, reporter=reporter)
+    return str(root)
+
+
+def run_bench(out: str | os.PathLike, preset: str = "tiny", matrix: str | os.PathLike | None = None,
+              roles: list[str] | None = None, registry: Any = None,
+              reporter: Reporter | None = None) -> list[dict[str, Any]]:
+    """Run the matrix (default: the shipped one) on ``preset`` for ``roles`` (default: all in the matrix),
+    write everything into ``out`` and return the records. Invalid matrices fail before any work starts."""
+    from pgc.registry import default_registry
+
+    registry = registry or default_registry()
+    reporter = reporter or Reporter.silent()
+    out = Path(out)
+    plans = load_matrix(matrix, registry, preset, roles)
+    out.mkdir(parents=True, exist_ok=True)
+    env = versions()
+    capture: list[str] = []
+
+    def capture_dir() -> str:
+        if not capture:
+            capture.append(synthetic_capture(out, preset, reporter))
+        return capture[0]
+
+    from pgc.bench.workloads import WORKLOADS
+
+    records: list[dict[str, Any]] = []
+    for plan in plans:
+        module = importlib.import_module(WORKLOADS[plan.role])
+        with reporter.stage(f"bench_{plan.role}", runs=len(plan.runs)) as stage:
+            start = time.perf_counter()
+            ctx = Context(plan.role, preset, plan.workload, plan.runs, registry, env, capture_dir, stage)
+            try:
+                new = module.bench(ctx)
+            except Exception as exc:  # the workload itself (scene, reference) failed: one record says why
+                new = [ctx.failed("(workload)", "", {}, exc, "")]
+            stage.record(records=len(new), seconds=time.perf_counter() - start)
+        if plan.workload.get("options"):
+            for r in new:  # the preset's options for every implementation, recorded with each run
+                r["settings"]["preset_options"] = plan.workload["options"]
+        records += new
+        write_outputs(out, records)  # after every role: an interrupted run keeps what it measured
+    return records
+
+
+def write_outputs(out: Path, records: list[dict[str, Any]]) -> None:
+    """A detail file per run (the record's settings and errors with its per-view/per-frame data, moved out of
+    the record), ratios, bench.json, bench.csv, plots and bench.html."""
+    from pgc.bench.report import write_report
+    from pgc.io.atomic import write_json
+
+    details = out / DETAILS
+    details.mkdir(exist_ok=True)
+    for i, r in enumerate(records):
+        if r.get("detail") is not None:  # written by an earlier call (one call per finished role)
+            continue
+        name = f"{i:03d}-{r['role']}-{r['implementation']}.json".replace("/", "_").replace(" ", "_")
+        write_json(details / name, {"role": r["role"], "implementation": r["implementation"], "label": r.get("label"),
+                                    "settings": r["settings"], "errors": r["errors"], **r.pop("_detail", {})})
+        r["detail"] = f"{DETAILS}/{name}"
+    rec.add_reference_ratios(records)
+    rec.validate(records)
+    rec.write_json(out / "bench.json", records)
+    rec.write_csv(out / "bench.csv", records)
+    write_report(out, records)

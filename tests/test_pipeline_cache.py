@@ -1,0 +1,63 @@
+"""The stage cache: content keys, reuse, recompute on change, no half-written stage after a crash."""
+
+import json
+
+import numpy as np
+import pytest
+
+from pgc.pipeline.cache import StageCache, array_key, content_key, file_key
+
+
+def test_content_key_is_stable_and_order_free():
+    assert content_key({"a": 1, "b": [1, 2]}) == content_key({"b": [1, 2], "a": 1})
+    assert content_key({"a": 1}) != content_key({"a": 2})
+
+
+def test_file_and_array_keys_follow_content(tmp_path):
+    (tmp_path / "d").mkdir()
+    (tmp_path / "d" / "x.txt").write_text("one")
+    k1 = file_key(tmp_path / "d")
+    (tmp_path / "d" / "x.txt").write_text("two")
+    assert file_key(tmp_path / "d") != k1
+    a = np.arange(6.0)
+    assert array_key(a) == array_key(a.copy()) != array_key(a.reshape(2, 3)) != array_key(a.astype(np.float32))
+
+
+def test_stage_is_reused_when_the_key_matches_and_recomputed_when_it_changes(tmp_path):
+    cache = StageCache(tmp_path)
+    calls = []
+
+    def compute(folder):
+        calls.append(1)
+        (folder / "v.json").write_text(json.dumps(len(calls)))
+        return len(calls), {"n": len(calls)}
+
+    def load(folder):
+        return json.loads((folder / "v.json").read_text())
+
+    first = cache.run("s", "k1", compute, load)
+    again = cache.run("s", "k1", compute, load)
+    assert (first.value, first.cached, again.value, again.cached) == (1, False, 1, True)
+    changed = cache.run("s", "k2", compute, load)
+    assert (changed.value, changed.cached) == (2, False)
+    assert cache.figures("s") == {"n": 2}
+
+
+def test_a_crash_inside_a_stage_leaves_the_previous_result_intact(tmp_path):
+    cache = StageCache(tmp_path)
+
+    def good(folder):
+        (folder / "v.txt").write_text("good")
+        return "good", {}
+
+    cache.run("s", "k1", good, lambda f: (f / "v.txt").read_text())
+
+    def crash(folder):
+        (folder / "v.txt").write_text("half")
+        raise RuntimeError("killed")
+
+    with pytest.raises(RuntimeError):
+        cache.run("s", "k2", crash, lambda f: (f / "v.txt").read_text())
+    assert cache.cached_key("s") == "k1"
+    assert (cache.folder("s") / "v.txt").read_text() == "good"
+    assert [p.name for p in tmp_path.iterdir()] == ["s"]  # no temporary folder left behind
