@@ -46,7 +46,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--val-scenes", type=int, default=6, help="validation scenes (dress, never trained on)")
     p.add_argument("--views", type=int, default=6)
     p.add_argument("--resolution", type=int, default=128)
-    p.add_argument("--steps", type=int, default=1500)
+    p.add_argument("--steps", type=int, default=1000)
     p.add_argument("--smoke", action="store_true", help="tiny data and few steps (tests)")
     args = p.parse_args(argv)
     if args.smoke:

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from pgc.errors import PGCDataError
-from pgc.roles.albedo_estimator import AlbedoEstimator
 from pgc.options import Options
+from pgc.roles.albedo_estimator import AlbedoEstimator
 
 
 class ShadingRatioOptions(Options):

@@ -2,8 +2,11 @@
 
 1. choose the views that together see most of the garment (greedy coverage, ``num_views``, paper: 10);
 2. predict albedo per view with the configured ``albedo_estimator``;
-3. fit a 3x3 colour-correction matrix per view mapping the prediction towards the image inside the
-   garment mask (robust least squares), which normalises colour and scale across views;
+3. colour correction (robust least squares, :mod:`pgc.texture.color_correction`): per view a 3x3 matrix
+   mapping its prediction onto the views' consensus (the weighted median of the raw back-projections)
+   over the texels it sees, which normalises colour and scale across views; then one global 3x3 matrix
+   mapping the normalised prediction towards the images inside the garment masks (the paper's "towards
+   the image"), which puts the albedo in the capture's colour space;
 4. back-project the corrected albedo into the UV atlas with visibility (the full mesh occludes),
    weight by viewing angle and footprint, merge by a weighted median, fill holes and pad seams.
 """
@@ -21,6 +24,9 @@ from pgc.texture.atlas import texel_geometry
 from pgc.texture.backproject import ViewTexture, fill_holes, merge_views, project_view
 from pgc.texture.color_correction import apply_color_matrix, fit_color_matrix
 from pgc.types import Capture, Mesh, View
+
+STAGE_VERSION = 2
+"""Bumped when the stage's algorithm changes, so cached results are recomputed."""
 
 
 @dataclass
@@ -76,17 +82,23 @@ def build_base_color(capture: Capture, garment: Mesh, estimator: AlbedoEstimator
             probes.append(project_view(geom, garment, view.camera, view.image, mask, occluder=occluder))
             st.progress(i + 1)
         chosen = _greedy_views([p.weight for p in probes], num_views)
-        raw, corrected, matrices = [], [], []
+        albedos, raw = [], []
         for k, i in enumerate(chosen):
             view, mask = capture.views[i], masks[i]
-            albedo = estimator.estimate(view.image, mask, shading(view) if shading is not None else None)
-            inside = mask > 0.5
-            m = fit_color_matrix(albedo[inside], view.image[inside])
-            matrices.append(m)
-            raw.append(project_view(geom, garment, view.camera, albedo, mask, occluder=occluder))
-            corrected.append(project_view(geom, garment, view.camera, apply_color_matrix(albedo, m), mask,
-                                          occluder=occluder))
+            albedos.append(estimator.estimate(view.image, mask, shading(view) if shading is not None else None))
+            raw.append(project_view(geom, garment, view.camera, albedos[-1], mask, occluder=occluder))
             st.progress(len(capture.views) + k + 1)
+        consensus, seen_any = merge_views(raw, "median")
+        matrices = [fit_color_matrix(r.color[seen_any > 0], consensus[seen_any > 0], r.weight[seen_any > 0])
+                    for r in raw]
+        inside = [masks[i] > 0.5 for i in chosen]
+        pairs_src = np.concatenate([apply_color_matrix(a[m], mv) for a, m, mv in zip(albedos, inside, matrices)])
+        pairs_dst = np.concatenate([capture.views[i].image[m] for i, m in zip(chosen, inside)])
+        to_image = fit_color_matrix(pairs_src, pairs_dst)
+        # bilinear sampling is linear, so correcting the back-projected colours equals back-projecting the
+        # corrected images
+        normalised = [ViewTexture(apply_color_matrix(r.color, mv), r.weight) for r, mv in zip(raw, matrices)]
+        corrected = [ViewTexture(apply_color_matrix(r.color, to_image), r.weight) for r in normalised]
         merged, weight = merge_views(corrected, "median")
         seen = weight > 0
         texture = fill_holes(merged, seen)
@@ -96,8 +108,9 @@ def build_base_color(capture: Capture, garment: Mesh, estimator: AlbedoEstimator
             "atlas_fill": float(geom.valid.mean()),
             "observed_fraction": float(seen.sum() / max(geom.valid.sum(), 1)),
             "spread_before_correction": cross_view_spread(raw),
-            "spread_after_correction": cross_view_spread(corrected),
+            "spread_after_correction": cross_view_spread(normalised),
             "color_matrices": [m.tolist() for m in matrices],
+            "to_image_matrix": to_image.tolist(),
         }
         st.record(**{k: v for k, v in figures.items() if isinstance(v, float)})
     return BaseColorResult(texture, weight, figures)

@@ -96,12 +96,15 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
 
     # 3. base colour
     tex_settings = cfg.stage("base_color")
-    tex_key = content_key("base_color", garment_key, cfg.role_key("albedo_estimator"), tex_settings)
+    estimator = cfg.create("albedo_estimator")
+    from pgc.albedo.texture_stage import STAGE_VERSION
+
+    tex_key = content_key("base_color", STAGE_VERSION, garment_key, cfg.role_key("albedo_estimator"),
+                          estimator.fingerprint, tex_settings)
 
     def compute_texture(folder: Path):
         from pgc.albedo.texture_stage import build_base_color
 
-        estimator = cfg.create("albedo_estimator")
         shading = _white_shading(cfg, full.value) if getattr(estimator, "needs_shading", False) else None
         res = build_base_color(capture, garment, estimator, tex_settings.texture_size, tex_settings.num_views,
                                occluder=full.value, shading=shading, reporter=reporter)

@@ -21,6 +21,8 @@ class AlbedoEstimator(RoleImplementation, ABC):
     role = "albedo_estimator"
     needs_shading: bool = False
     """True when :meth:`estimate` requires the ``shading`` image (the pipeline then renders it)."""
+    fingerprint: str | None = None
+    """A content hash of external state the results depend on (e.g. a model file), for cache keys."""
 
     @abstractmethod
     def estimate(self, image: np.ndarray, mask: np.ndarray | None = None,

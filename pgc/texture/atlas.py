@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pgc.errors import PGCDataError
-from pgc.texture.raster import rasterize
+from pgc.geometry.raster import covered_pixels
 from pgc.types import Mesh
 
 
@@ -42,12 +42,16 @@ def texel_geometry(mesh: Mesh, height: int, width: int, vertices: np.ndarray | N
     if mesh.uv is None:
         raise PGCDataError(f"mesh '{mesh.name}' has no UV atlas; unwrap it first (the reconstructor does)")
     verts = mesh.vertices if vertices is None else np.asarray(vertices, dtype=np.float64)
-    raster = rasterize(uv_to_pixel(mesh.uv[mesh.face_uv], height, width), height, width)
-    valid = raster.face >= 0
-    fid = np.where(valid, raster.face, 0)
+    face = np.full(height * width, -1, dtype=np.int64)
+    bary = np.zeros((height * width, 3))
+    for tri, pix, b in covered_pixels(uv_to_pixel(mesh.uv[mesh.face_uv], height, width), width, height):
+        face[pix], bary[pix] = tri, b  # charts of a valid atlas do not overlap
+    face, bary = face.reshape(height, width), bary.reshape(height, width, 3)
+    valid = face >= 0
+    fid = np.where(valid, face, 0)
     corners = verts[mesh.faces[fid]]  # (H, W, 3, 3)
-    position = np.einsum("hwk,hwkc->hwc", raster.bary, corners) * valid[..., None]
+    position = np.einsum("hwk,hwkc->hwc", bary, corners) * valid[..., None]
     n = np.cross(corners[..., 1, :] - corners[..., 0, :], corners[..., 2, :] - corners[..., 0, :])
     length = np.linalg.norm(n, axis=-1, keepdims=True)
     normal = np.divide(n, length, out=np.zeros_like(n), where=length > 0) * valid[..., None]
-    return TexelGeometry(raster.face, raster.bary, position, normal)
+    return TexelGeometry(face, bary, position, normal)

@@ -4,15 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from pgc.texture.raster import Raster, rasterize
+from pgc.geometry.raster import Raster, rasterize
 from pgc.types import Camera, Mesh
 
 
 def render_faces(mesh: Mesh, camera: Camera, vertices: np.ndarray | None = None) -> Raster:
     """Nearest face, perspective-correct barycentrics and camera depth per pixel of ``camera``."""
-    verts = mesh.vertices if vertices is None else np.asarray(vertices, dtype=np.float64)
-    xy, z = camera.project(verts)
-    return rasterize(xy[mesh.faces], camera.height, camera.width, tri_depth=z[mesh.faces])
+    return rasterize(camera, mesh.vertices if vertices is None else vertices, mesh.faces)
 
 
 def visible_points(points: np.ndarray, faces_of_points: np.ndarray | None, raster: Raster, camera: Camera,
@@ -29,7 +27,7 @@ def visible_points(points: np.ndarray, faces_of_points: np.ndarray | None, raste
     inside &= (xy[:, 0] >= 0) & (xy[:, 0] < camera.width) & (xy[:, 1] >= 0) & (xy[:, 1] < camera.height)
     col = np.clip(np.where(inside, xy[:, 0], 0).astype(np.int64), 0, camera.width - 1)
     row = np.clip(np.where(inside, xy[:, 1], 0).astype(np.int64), 0, camera.height - 1)
-    same_face = False if faces_of_points is None else raster.face[row, col] == faces_of_points
+    same_face = False if faces_of_points is None else raster.face_id[row, col] == faces_of_points
     zb = raster.depth[row, col]
     close = np.abs(zb - z) <= depth_tolerance * np.maximum(z, 1e-9)
     return inside & (same_face | close), xy
@@ -44,8 +42,8 @@ def render_texture_to_view(mesh: Mesh, texture: np.ndarray, camera: Camera,
     if mesh.uv is None:
         raise PGCDataError(f"mesh '{mesh.name}' has no UVs to look the texture up with")
     raster = render_faces(mesh, camera, vertices)
-    covered = raster.face >= 0
-    fid = raster.face[covered]
+    covered = raster.face_id >= 0
+    fid = raster.face_id[covered]
     uv = np.einsum("nk,nkc->nc", raster.bary[covered], mesh.uv[mesh.face_uv[fid]].astype(np.float64))
     out = np.zeros((camera.height, camera.width, texture.shape[2]), dtype=np.float32)
     out[covered] = sample_uv(texture, uv)

@@ -12,6 +12,7 @@ whole-image run away from tile borders when the receptive field is within the ov
 
 from __future__ import annotations
 
+import hashlib
 from importlib import resources
 from pathlib import Path
 
@@ -48,6 +49,8 @@ class OnnxAlbedoEstimator(AlbedoEstimator):
         except Exception as exc:
             raise PGCDataError(f"albedo model '{path}' is not a loadable ONNX model: {exc}") from None
         self.path = path
+        self.fingerprint = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+        """Content hash of the model file (pipeline caches key on it)."""
         inputs = self.session.get_inputs()
         if len(inputs) != 1:
             raise PGCDataError(f"albedo model '{path}': expected one input (N, 3, H, W), found {len(inputs)}")

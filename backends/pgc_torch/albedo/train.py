@@ -1,7 +1,10 @@
 """Training of the shipped albedo U-Net on synthetic renders (seeded and deterministic on the CPU).
 
 Loss, on foreground pixels in sRGB space (what the network sees): L1 of the albedo plus L1 of its image
-gradients (sharp pattern edges, flat shading-free regions). Adam with a cosine learning-rate decay.
+gradients (sharp pattern edges, flat shading-free regions), both after the best per-image, per-channel
+scale of the prediction. Albedo and light are only known up to such a scale (the light's tint and
+intensity vary across the training scenes; the pipeline's colour correction removes the scale), so the
+network is asked for what can be inferred: the shading-free pattern. Adam with a cosine decay.
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from pgc_torch.albedo.net import AlbedoUNet
 
 @dataclass
 class TrainSettings:
-    steps: int = 1500
+    steps: int = 1000
     batch: int = 8
     crop: int = 96
     lr: float = 2e-3
@@ -37,6 +40,8 @@ def _masked_l1(a: torch.Tensor, b: torch.Tensor, m: torch.Tensor) -> torch.Tenso
 
 def _loss(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
     m = mask[:, None]
+    scale = (m * pred * target).sum((2, 3), keepdim=True) / ((m * pred * pred).sum((2, 3), keepdim=True) + 1e-6)
+    pred = pred * scale.detach()
     grad_x = _masked_l1(pred.diff(dim=-1), target.diff(dim=-1), m[..., :, 1:] * m[..., :, :-1])
     grad_y = _masked_l1(pred.diff(dim=-2), target.diff(dim=-2), m[..., 1:, :] * m[..., :-1, :])
     return _masked_l1(pred, target, m) + 0.5 * (grad_x + grad_y)

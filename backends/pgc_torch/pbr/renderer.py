@@ -115,8 +115,8 @@ class TorchPBRRenderer(PBRRenderer):
 
         directions = fibonacci_directions(self.options.directions)
         raster = render_faces(mesh, camera)
-        covered = raster.face >= 0
-        face, bary = raster.face[covered], raster.bary[covered]
+        covered = raster.face_id >= 0
+        face, bary = raster.face_id[covered], raster.bary[covered]
         points, normals, vis = self._surface(mesh, face, bary, directions)
         if material.base_color is not None:
             if mesh.uv is None:

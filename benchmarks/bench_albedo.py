@@ -1,0 +1,81 @@
+#!/usr/bin/env python
+"""Albedo estimators and the base-colour texture against the synthetic ground truth.
+
+    python benchmarks/bench_albedo.py CAPTURE ASSET_STAGES [--out bench_albedo.json]
+
+CAPTURE: a `pgc synth` capture (its views carry the ground-truth 'albedo' layer); ASSET_STAGES: the
+`stages/` folder of a `pgc reconstruct` run on it (the garment sub-mesh and full mesh come from there).
+For each estimator (the shipped ONNX network, and the raw image used as albedo as the reference) it
+reports the per-view albedo error on the garment (after the best per-channel scale, since albedo is only
+known up to one), the cross-view spread before and after colour correction, the error of the merged
+texture seen through every camera, and seconds (ratios to the raw reference measured in the same run).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+class RawImage:
+    """The image itself as albedo: the reference an estimator must beat."""
+
+    needs_shading = False
+    fingerprint = None
+
+    def estimate(self, image, mask=None, shading=None):
+        return np.asarray(image, np.float32)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("capture", type=Path)
+    p.add_argument("stages", type=Path)
+    p.add_argument("--out", type=Path, default=Path("bench_albedo.json"))
+    args = p.parse_args(argv)
+
+    from pgc.albedo.dataset import scale_invariant_error
+    from pgc.albedo.texture_stage import build_base_color, garment_mask
+    from pgc.io.capture import read_capture
+    from pgc.pipeline.stage_io import load_mesh
+    from pgc.texture.visibility import render_texture_to_view
+    from pgc_onnx.albedo import OnnxAlbedoEstimator
+
+    capture = read_capture(args.capture)
+    full = load_mesh(args.stages / "mesh" / "mesh.npz")
+    garment = load_mesh(args.stages / "garment" / "garment.npz")
+    ids = capture.garment_label_ids
+    records = []
+    for name, estimator in (("raw_image", RawImage()), ("onnx", OnnxAlbedoEstimator())):
+        start = time.perf_counter()
+        per_view = [scale_invariant_error(estimator.estimate(v.image, garment_mask(v, ids)), v.extras["albedo"],
+                                          garment_mask(v, ids)) for v in capture.views]
+        res = build_base_color(capture, garment, estimator, 512, 10, occluder=full)
+        seconds = time.perf_counter() - start
+        merged = []
+        for v in capture.views:
+            tex, cover = render_texture_to_view(garment, res.texture, v.camera)
+            merged.append(scale_invariant_error(tex, v.extras["albedo"], garment_mask(v, ids) * cover))
+        records.append({"role": "albedo_estimator", "implementation": name, "preset": str(args.capture),
+                        "seconds": seconds,
+                        "errors": {"albedo_view": float(np.mean(per_view)), "albedo_view_std": float(np.std(per_view)),
+                                   "texture": float(np.mean(merged)), "texture_std": float(np.std(merged)),
+                                   "spread_before": res.figures["spread_before_correction"],
+                                   "spread_after": res.figures["spread_after_correction"]}})
+    ref = records[0]["seconds"]
+    print(f"{'estimator':<10} {'x raw':>6} {'view err':>9} {'texture err':>12} {'spread before':>14} {'after':>7}")
+    for r in records:
+        e = r["errors"]
+        r["x_reference"] = r["seconds"] / ref
+        print(f"{r['implementation']:<10} {r['x_reference']:6.2f} {e['albedo_view']:9.4f} {e['texture']:12.4f} "
+              f"{e['spread_before']:14.4f} {e['spread_after']:7.4f}")
+    args.out.write_text(json.dumps(records, indent=2) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
