@@ -34,7 +34,8 @@ PIP="$VENV/bin/python -m pip"
 pip_quiet() {
   local rc
   set +e
-  $PIP "$@" 2>&1 | grep -v -e "^WARNING: Location" -e "BuildBackendWarning" -e "^ *!!" -e "^ *\*\*\*"
+  $PIP "$@" 2>&1 | grep -v -e "^WARNING: Location" -e "BuildBackendWarning" -e "^ *!!" -e "^ *\*\*\*" \
+    -e "Please be careful with folders" -e "name as your package" -e "with strategy, WheelFile" -e "^ *$"
   rc=${PIPESTATUS[0]}
   set -e
   return "$rc"
@@ -44,6 +45,9 @@ pip_quiet install -q --upgrade pip setuptools wheel
 pip_quiet install -q "torch==2.13.0"
 pip_quiet install -q -e ".[all,dev]"
 pip_quiet install -q -e examples/pgc-example-plugin
+# piq: an independent FSIM for the test suite's cross-check only (without its torchvision dependency, which
+# would pull a CUDA torch; the test shims the one import piq makes). Never a runtime dependency.
+pip_quiet install -q --no-deps "piq==0.8.0"
 # The compiled OpenMP compositing kernel of the torch splat renderer (g++; cached in ~/.cache/pgc/kernels).
 # Without a compiler the renderer falls back to pure torch, so a failure here is not fatal.
 "$VENV/bin/python" -m pgc_torch.splat.kernel || echo "[setup] warning: splat kernel not built; torch fallback in use" >&2

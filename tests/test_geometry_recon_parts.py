@@ -85,3 +85,10 @@ def test_label_vote_ignores_views_without_segmentation(scene):
     views = [View(v.camera, v.image, v.mask) for v in cap.views]
     labels, conf = vote_face_labels(gt.vertices, gt.faces, views, 3)
     assert (conf == 0).all() and np.isfinite(labels).all()
+
+
+def test_poisson_depth_of_no_points_is_a_clear_error():
+    from pgc.geometry.dense import poisson_depth_for
+
+    with pytest.raises(PGCDataError, match="no points to mesh"):
+        poisson_depth_for(np.zeros((0, 3)), 0.01)

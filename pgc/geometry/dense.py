@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pgc.errors import PGCDataError
 from pgc.events import Reporter
 from pgc.geometry.hull import SilhouetteField, _axis_centre, check_views, pixel_footprint, visual_hull
 from pgc.geometry.metrics import sample_surface
@@ -73,6 +74,9 @@ def hull_fill_points(hull: Mesh, points: np.ndarray, footprint: float) -> tuple[
 
 def poisson_depth_for(points: np.ndarray, cell: float) -> int:
     """Octree depth whose cell size (Open3D scales the bounding cube by 1.1) is at most ``cell``."""
+    if len(points) == 0:
+        raise PGCDataError("no points to mesh: stereo found no consistent depth (too few views or too little "
+                           "texture at this resolution)")
     extent = 1.1 * float(np.max(points.max(0) - points.min(0)))
     return int(np.clip(np.ceil(np.log2(extent / cell)), 5, 11))
 

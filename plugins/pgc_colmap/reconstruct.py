@@ -198,7 +198,10 @@ class ColmapReconstructor(Reconstructor):
             with reporter.stage("mesh.colmap_poisson"):
                 po = pycolmap.PoissonMeshingOptions()
                 po.trim = float(opt.poisson_trim)
-                po.depth = int(opt.poisson_depth or poisson_depth_for(dense.points, opt.poisson_cell_px * dense.footprint))
+                # the extent of what is meshed: the stereo points, or the hull when stereo found none
+                extent_points = dense.points if len(dense.points) else dense.hull.vertices
+                po.depth = int(opt.poisson_depth or poisson_depth_for(extent_points,
+                                                                      opt.poisson_cell_px * dense.footprint))
                 meshed = root / "meshed.ply"
                 figures["fused_points"], figures["hull_points"] = add_hull_points(fused, dense, opt)
                 pycolmap.poisson_meshing(fused, meshed, po)
