@@ -23,7 +23,18 @@ def _available(role: str) -> list:
 
 
 @pytest.fixture(scope="module")
-def built():
+def required_options(tmp_path_factory) -> dict:
+    """Options that an implementation cannot do without (a user's scan file for the 'mesh' reconstructor)."""
+    from pgc.io.mesh import write_mesh
+    from pgc.testing.conformance import uv_sphere
+
+    scan = tmp_path_factory.mktemp("scan") / "scan.obj"
+    write_mesh(scan, uv_sphere())
+    return {("reconstructor", "mesh"): {"path": str(scan)}}
+
+
+@pytest.fixture(scope="module")
+def built(required_options):
     """Implementations are built once per module (some compile kernels on first use)."""
     cache: dict = {}
 
@@ -31,7 +42,7 @@ def built():
         key = (impl.role, impl.name)
         if key not in cache:
             try:
-                cache[key] = impl.create()
+                cache[key] = impl.create(required_options.get(key))
             except (PGCConfigError, PGCDataError) as exc:  # e.g. a required option such as a file path
                 cache[key] = exc
         if isinstance(cache[key], Exception):
