@@ -23,26 +23,15 @@ import argparse
 import concurrent.futures as cf
 import json
 import multiprocessing
-import platform
 import resource
 import tempfile
 import time
-from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from pgc.io.asset import package_versions
 
 ROLE = "reconstructor"
-
-
-def _versions() -> dict[str, str]:
-    out = {"python": platform.python_version()}
-    for pkg in ("pgc", "numpy", "scipy", "open3d-cpu", "pycolmap", "pymeshlab", "xatlas", "opencv-python-headless"):
-        try:
-            out[pkg] = metadata.version(pkg)
-        except metadata.PackageNotFoundError:
-            pass
-    return out
 
 
 def _reconstruct(name: str, capture: Any, options: dict[str, Any]) -> dict[str, Any]:
@@ -114,7 +103,8 @@ def run(capture: str | None = None, implementations: tuple[str, ...] = ("visual_
                 "stages": {k: v for k, v in fig.items() if k.startswith("seconds_")},
                 "mesh": {k: fig[k] for k in ("vertices", "faces", "min_angle_deg", "non_manifold_edges",
                                              "non_manifold_vertices", "boundary_edges", "components") if k in fig},
-                "versions": _versions(),
+                "versions": package_versions(("pgc", "numpy", "scipy", "open3d-cpu", "pycolmap", "pymeshlab", "xatlas",
+                                              "opencv-python-headless")),
             })
     base = next((r["seconds"] for r in records if r["implementation"] == "visual_hull"), None)
     for r in records:

@@ -26,6 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from pgc.io.asset import package_versions
+
 from pgc.sim.collision import penetration_fraction
 from pgc.sim.driver import FrameRunner, XPBDSimulator, settle, step_settings
 from pgc.sim.model import STRETCH
@@ -42,16 +44,6 @@ PRESETS: dict[str, dict[str, Any]] = {
 }
 MOTION, MOTION_START = "goalpost", 8
 """Timed frames come from this motion starting at this frame (the arms are moving there)."""
-
-
-def versions() -> dict[str, str]:
-    out = {"numpy": np.__version__}
-    for name in ("torch", "jax", "warp", "newton"):
-        try:
-            out[name] = __import__(name).__version__
-        except ImportError:
-            pass
-    return out
 
 
 def peak_mb() -> float:
@@ -108,8 +100,9 @@ def timed_frames(sim: XPBDSimulator, garment: Mesh, motion: BodyMotion, frames: 
 
 
 def record(implementation: str, preset: str, settings: dict, seconds: float, errs: dict) -> dict:
+    versions = package_versions(("pgc", "numpy", "torch", "jax", "warp-lang", "newton"))
     return {"role": "simulator", "implementation": implementation, "preset": preset, "settings": settings,
-            "seconds": seconds, "peak_mb": peak_mb(), "errors": errs, "versions": versions()}
+            "seconds": seconds, "peak_mb": peak_mb(), "errors": errs, "versions": versions}
 
 
 def bench_fps(preset: str, cfg: dict) -> list[dict]:

@@ -22,11 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-
-def _versions() -> dict[str, str]:
-    from importlib.metadata import version
-
-    return {p: version(p) for p in ("mitsuba", "drjit", "numpy")}
+from pgc.io.asset import package_versions
 
 
 def _peak_mb() -> float:
@@ -68,7 +64,7 @@ def noise_study(resolution: int, fabric: str, spps: list[int], samplers: list[st
                             "peak_mb": _peak_mb(),
                             "errors": {"noise_std": noise, "noise_psnr_db": float(-20 * np.log10(max(noise, 1e-12))),
                                        "bias_mean": bias},
-                            "versions": _versions()})
+                            "versions": package_versions(("pgc", "numpy", "mitsuba", "drjit", "scikit-image"))})
     return records
 
 
@@ -86,7 +82,7 @@ def preset_times(presets: list[str], out: Path) -> list[dict]:
         records.append({"role": "synth", "implementation": "pgc-synth", "preset": name,
                         "settings": {"views": p.views, "resolution": p.resolution, "spp": p.spp},
                         "seconds": seconds, "stage_seconds": reporter.timings, "peak_mb": _peak_mb(), "errors": {},
-                        "versions": _versions()})
+                        "versions": package_versions(("pgc", "numpy", "mitsuba", "drjit", "scikit-image"))})
     return records
 
 
