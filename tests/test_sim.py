@@ -8,7 +8,7 @@ import pytest
 from pgc.sim.collision import candidate_corners, signed_distance, vertex_normals
 from pgc.sim.kernels import NUMPY, closest_barycentric
 from pgc.sim.model import BEND, STRETCH, bending_pairs, build_cloth_model, vertex_masses
-from pgc.sim.sagfree import solve_sag_free
+from pgc.sim.sagfree import hem_sag, sag, shape_error, solve_sag_free
 from pgc.sim.scenes import grid_cloth, skirt, uv_sphere
 from pgc.sim.schedule import body_schedule
 from pgc.types import BodyMotion, Mesh
@@ -119,3 +119,15 @@ def test_sag_free_rest_lengths_reproduce_the_target_under_load():
     assert history[0]["sag_max"] > 0.05
     assert history[-1]["sag_max"] < 1e-3 * history[0]["sag_max"]
     assert np.all(model.rest < 0.1)  # pre-shortened
+
+
+def test_sag_measures_split_a_rigid_drop_from_deformation():
+    target = grid_cloth(5, 0.4, 1.0, vertical=True).vertices  # rows 0.1 m apart, the hem at y = 0.6
+    dropped = target - [0.0, 0.03, 0.0]
+    assert sag(dropped, target) == pytest.approx((0.03, 0.03))
+    assert shape_error(dropped, target) == pytest.approx(0.0, abs=1e-15)  # a rigid drop: no deformation
+    assert hem_sag(dropped, target) == pytest.approx(0.03)
+    stretched = target.copy()
+    stretched[:, 1] = 1.0 + 1.1 * (target[:, 1] - 1.0)  # 10 % longer, hanging from y = 1
+    assert hem_sag(stretched, target) == pytest.approx(0.04)  # only the hem row (0.4 m below the top) counts
+    assert shape_error(stretched, target) > 0.0

@@ -241,7 +241,7 @@ class FrameInput(NamedTuple):
 
 @dataclass(frozen=True)
 class StepSettings:
-    """Scalars of a run (static under JIT)."""
+    """Scalars of a run (traced under JIT, except ``self_collision``: one program serves every value)."""
 
     substeps: int
     iterations: int

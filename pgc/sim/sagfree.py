@@ -27,13 +27,27 @@ def sag(positions: np.ndarray, target: np.ndarray) -> tuple[float, float]:
     return float(d.mean()), float(d.max())
 
 
+def shape_error(positions: np.ndarray, target: np.ndarray) -> float:
+    """Mean vertex displacement (m) of ``positions`` from ``target`` after removing the mean translation: the
+    deformation part of the sag (a garment that drops rigidly into contact has none)."""
+    d = positions - target
+    return float(np.linalg.norm(d - d.mean(axis=0), axis=1).mean())
+
+
+def hem_sag(positions: np.ndarray, target: np.ndarray, band: float = 0.02) -> float:
+    """Mean downward (-y) displacement (m) of the hem: the target vertices within ``band`` (m) of its lowest."""
+    hem = target[:, 1] < target[:, 1].min() + band
+    return float(np.mean(target[hem, 1] - positions[hem, 1]))
+
+
 def solve_sag_free(model: ClothModel, equilibrium: Callable[[ClothModel], np.ndarray], iterations: int,
                    progress: Callable[..., Any] | None = None) -> tuple[ClothModel, list[dict[str, float]]]:
     """Rest lengths for which ``equilibrium(model)`` (positions after settling on the capture body,
     starting from ``model.rest_positions``) reproduces ``model.rest_positions``.
 
     Returns the model with the solved rest lengths (best iterate by mean sag) and the history of
-    ``{"iteration", "sag_mean", "sag_max", "length_error"}``; iteration 0 is the plain rest shape.
+    ``{"iteration", "sag_mean", "sag_max", "shape_error", "drop", "hem_sag", "length_error"}`` (m; ``drop``:
+    the mean downward displacement); iteration 0 is the plain rest shape.
     """
     target = model.rest_positions
     goal = np.linalg.norm(target[model.ci] - target[model.cj], axis=1)
@@ -43,7 +57,8 @@ def solve_sag_free(model: ClothModel, equilibrium: Callable[[ClothModel], np.nda
         x = equilibrium(current)
         lengths = np.linalg.norm(x[model.ci] - x[model.cj], axis=1)
         mean, worst = sag(x, target)
-        history.append({"iteration": it, "sag_mean": mean, "sag_max": worst,
+        history.append({"iteration": it, "sag_mean": mean, "sag_max": worst, "shape_error": shape_error(x, target),
+                        "drop": float(target[:, 1].mean() - x[:, 1].mean()), "hem_sag": hem_sag(x, target),
                         "length_error": float(np.sqrt(np.mean((lengths - goal) ** 2)))})
         if progress is not None:
             progress(it, iterations, sag_mean=mean)

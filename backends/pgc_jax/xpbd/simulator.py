@@ -1,9 +1,11 @@
 """``xpbd-jax``: :func:`pgc.sim.kernels.advance_frame` jitted whole (substeps and iterations become
-``lax.fori_loop``); compiled once per garment (and per self-collision pair bucket)."""
+``lax.fori_loop``); compiled once per garment shape (and per self-collision pair bucket): the scalar settings
+(substeps, iterations, time step, damping, offset, friction, ...) are traced, not compiled in."""
 
 from __future__ import annotations
 
 import contextlib
+from dataclasses import fields
 
 import jax
 import jax.numpy as jnp
@@ -16,8 +18,17 @@ from pgc.sim.options import XPBDOptions
 
 JAX = ArrayOps(jnp, lambda a, idx, values: a.at[idx].add(values),
                lambda n, body, carry: jax.lax.fori_loop(0, n, body, carry))
-_FRAME = jax.jit(advance_frame, static_argnums=(0, 1))
-"""One compiled program per (settings, array shapes), shared by every stepper."""
+
+
+def _advance(ops: ArrayOps, self_collision: bool, scalars: dict, statics: Statics, x: jax.Array, v: jax.Array,
+             frame: FrameInput) -> tuple:
+    """:func:`advance_frame` with every setting but ``self_collision`` (a Python branch) a traced scalar."""
+    return advance_frame(ops, StepSettings(self_collision=self_collision, **scalars), statics, x, v, frame)
+
+
+_FRAME = jax.jit(_advance, static_argnums=(0, 1))
+"""One compiled program per (array shapes, self-collision), shared by every stepper and setting."""
+_SCALARS = tuple(f.name for f in fields(StepSettings) if f.name != "self_collision")
 
 
 class JaxStepper(Stepper):
@@ -53,7 +64,9 @@ class JaxStepper(Stepper):
     def advance(self, frame: FrameInput) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         with self._precision():
             inputs = FrameInput(*(self._j(a) for a in frame))
-            self.x, self.v, res = _FRAME(JAX, self.settings, self.statics, self.x, self.v, inputs)
+            scalars = {name: getattr(self.settings, name) for name in _SCALARS}
+            self.x, self.v, res = _FRAME(JAX, self.settings.self_collision, scalars, self.statics, self.x, self.v,
+                                         inputs)
             res = jax.device_get(res)
             x = np.asarray(self.x, dtype=np.float64)
         return (x, self.in_model_order([np.asarray(g[0], np.float64) for g in res]),
