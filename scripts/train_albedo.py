@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """Train the shipped albedo network on synthetic renders and export it to ONNX (seeded, reproducible).
 
-    python scripts/train_albedo.py                 # the shipped model (about 15 minutes on 2 cores)
+    python scripts/train_albedo.py                 # the shipped model (~20 min on 2 quiet cores)
     python scripts/train_albedo.py --smoke --out /tmp/m.onnx   # seconds: a pipeline check
 
 Writes the model (default plugins/pgc_onnx/models/albedo_unet.onnx) and beside it a JSON record: settings,
@@ -25,14 +25,18 @@ ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = ROOT / "plugins" / "pgc_onnx" / "models" / "albedo_unet.onnx"
 
 
-def cached_data(kind: str, scenes: int, views: int, resolution: int, seed: int, reporter):
+DATA_VERSION = 2
+"""Bumped when pgc.albedo.dataset changes what it renders (the cache key)."""
+
+
+def cached_data(kind: str, scenes: int, views: int, resolution: int, seed: int, spp: int, reporter):
     from pgc.albedo.dataset import AlbedoData, make_albedo_data
 
-    path = ROOT / ".cache" / f"albedo_{kind}_{scenes}x{views}_{resolution}px_seed{seed}.npz"
+    path = ROOT / ".cache" / f"albedo_v{DATA_VERSION}_{kind}_{scenes}x{views}_{resolution}px_{spp}spp_seed{seed}.npz"
     if path.is_file():
         with np.load(path) as z:
             return AlbedoData(z["images"], z["albedo"], z["mask"], z["garment"])
-    data = make_albedo_data(kind, scenes, views, resolution, seed, reporter=reporter)
+    data = make_albedo_data(kind, scenes, views, resolution, seed, spp=spp, reporter=reporter)
     path.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(path, images=data.images, albedo=data.albedo, mask=data.mask, garment=data.garment)
     return data
@@ -42,11 +46,14 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", type=Path, default=DEFAULT_OUT)
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--scenes", type=int, default=24, help="training scenes (tshirt)")
+    p.add_argument("--scenes", type=int, default=40, help="training scenes (tshirt)")
     p.add_argument("--val-scenes", type=int, default=6, help="validation scenes (dress, never trained on)")
     p.add_argument("--views", type=int, default=6)
-    p.add_argument("--resolution", type=int, default=128)
-    p.add_argument("--steps", type=int, default=1000)
+    p.add_argument("--resolution", type=int, default=256, help="image side, pixels (the default capture's)")
+    p.add_argument("--spp", type=int, default=16, help="path-tracing samples per pixel (low-discrepancy)")
+    p.add_argument("--steps", type=int, default=1200)
+    p.add_argument("--batch", type=int, default=8)
+    p.add_argument("--crop", type=int, default=96)
     p.add_argument("--smoke", action="store_true", help="tiny data and few steps (tests)")
     args = p.parse_args(argv)
     if args.smoke:
@@ -66,9 +73,10 @@ def main(argv: list[str] | None = None) -> int:
     registry.plugin_manager.register(ProgressPrinter(), name="progress")
     reporter = Reporter(registry.hook)
     start = time.perf_counter()
-    train_data = cached_data("tshirt", args.scenes, args.views, args.resolution, args.seed, reporter)
-    val_data = cached_data("dress", args.val_scenes, args.views, args.resolution, args.seed + 1000, reporter)
-    settings = TrainSettings(steps=args.steps, seed=args.seed)
+    train_data = cached_data("tshirt", args.scenes, args.views, args.resolution, args.seed, args.spp, reporter)
+    val_data = cached_data("dress", args.val_scenes, args.views, args.resolution, args.seed + 1000, args.spp,
+                           reporter)
+    settings = TrainSettings(steps=args.steps, batch=args.batch, crop=args.crop, seed=args.seed)
     data_seconds = time.perf_counter() - start
     model = train(train_data, settings, reporter)
     train_seconds = time.perf_counter() - start - data_seconds
@@ -81,7 +89,8 @@ def main(argv: list[str] | None = None) -> int:
               "bytes": args.out.stat().st_size, "parameters": int(sum(p.numel() for p in model.parameters())),
               "settings": asdict(settings), "data": {"train": {"garment": "tshirt", "images": len(train_data)},
                                                      "validation": {"garment": "dress", "images": len(val_data)},
-                                                     "resolution": args.resolution, "views": args.views},
+                                                     "resolution": args.resolution, "views": args.views,
+                                                     "spp": args.spp, "data_version": DATA_VERSION},
               "validation": val, "training": train_metrics,
               "seconds": {"data": round(data_seconds, 1), "train": round(train_seconds, 1)}}
     args.out.with_suffix(".json").write_text(json.dumps(record, indent=2) + "\n")

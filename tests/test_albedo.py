@@ -104,3 +104,17 @@ def test_random_palette_is_deterministic_and_in_range():
     p1 = random_palette(np.random.default_rng(5), 3)
     assert p1 == random_palette(np.random.default_rng(5), 3)
     assert all(0 <= c <= 1 for col in p1 for c in col)
+
+
+def test_random_fabric_and_light_are_deterministic_and_varied():
+    from pgc.albedo.dataset import PATTERNS, random_fabric, random_light
+
+    fabrics = [random_fabric(np.random.default_rng([9, s])) for s in range(40)]
+    assert fabrics[3] == random_fabric(np.random.default_rng([9, 3]))
+    assert {f.pattern.split("+")[0] for f in fabrics} == set(PATTERNS)
+    assert any(f.pattern.endswith("+logo") for f in fabrics)
+    assert all(len(f.colors) == 3 for f in fabrics)
+    lights = [random_light(np.random.default_rng([9, s])) for s in range(30)]
+    assert any(light.envmap is not None for light in lights) and any(light.envmap is None for light in lights)
+    again = random_light(np.random.default_rng([9, 7]))
+    np.testing.assert_array_equal(again.radiance, lights[7].radiance)

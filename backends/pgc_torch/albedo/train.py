@@ -4,7 +4,9 @@ Loss, on foreground pixels in sRGB space (what the network sees): L1 of the albe
 gradients (sharp pattern edges, flat shading-free regions), both after the best per-image, per-channel
 scale of the prediction. Albedo and light are only known up to such a scale (the light's tint and
 intensity vary across the training scenes; the pipeline's colour correction removes the scale), so the
-network is asked for what can be inferred: the shading-free pattern. Adam with a cosine decay.
+network is asked for what can be inferred: the shading-free pattern. Augmentation: random crops, mirror,
+and a random per-channel gain of the input (exposure and white balance; the scale-invariant loss makes
+the target unchanged). Adam with a cosine decay.
 """
 
 from __future__ import annotations
@@ -22,11 +24,13 @@ from pgc_torch.albedo.net import AlbedoUNet
 
 @dataclass
 class TrainSettings:
-    steps: int = 1000
+    steps: int = 1200
     batch: int = 8
     crop: int = 96
     lr: float = 2e-3
     width: int = 24
+    gain: float = 0.25
+    """Input gain per sample and channel, uniform in [1 - gain, 1 + gain] (sRGB values, clipped to 1)."""
     seed: int = 0
 
 
@@ -67,6 +71,9 @@ def train(data: AlbedoData, settings: TrainSettings, reporter: Reporter | None =
             xb, yb, mb = (t[idx][..., oy:oy + c, ox:ox + c] for t in (x, y, m))
             if rng.uniform() < 0.5:  # mirror augmentation
                 xb, yb, mb = xb.flip(-1), yb.flip(-1), mb.flip(-1)
+            if settings.gain > 0:
+                gain = rng.uniform(1 - settings.gain, 1 + settings.gain, (settings.batch, 3, 1, 1))
+                xb = (xb * torch.from_numpy(gain.astype(np.float32))).clamp(0.0, 1.0)
             loss = _loss(model(xb), yb, mb)
             opt.zero_grad()
             loss.backward()
