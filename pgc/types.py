@@ -103,6 +103,13 @@ class Camera:
         d_world /= np.linalg.norm(d_world, axis=-1, keepdims=True)
         return np.broadcast_to(self.center, d_world.shape).copy(), d_world
 
+    def cropped(self, x0: int, y0: int, width: int, height: int) -> "Camera":
+        """The sub-image of ``width`` x ``height`` pixels whose top-left pixel is (``x0``, ``y0``)."""
+        K = self.K.copy()
+        K[0, 2] -= x0
+        K[1, 2] -= y0
+        return replace(self, K=K, width=int(width), height=int(height))
+
     def scaled(self, factor: float) -> "Camera":
         """The same camera at ``factor`` times the resolution (intrinsics scaled about the corner)."""
         K = self.K.copy()

@@ -130,3 +130,29 @@ def test_texture_space_coverage_and_errors(mitsuba_renderer, torch_renderer) -> 
         mitsuba_renderer.render(mesh, mat, Light(np.array([1.0, -1.0, 1.0])), cam)
     with pytest.raises(PGCDataError, match="envmap"):
         mitsuba_renderer.render(mesh, mat, Light(np.ones(3), envmap=np.ones((4, 4, 3), np.float32)), cam)
+
+
+def test_an_occluder_hides_and_shadows_but_is_not_rendered(mitsuba_renderer, torch_renderer) -> None:
+    """A small sphere between the camera and a big one: its pixels are empty (colour and alpha 0), the big
+    sphere is darker where the small one blocks part of its sky, and it is unchanged far from it."""
+    from scipy.ndimage import binary_dilation
+
+    big = uv_sphere(n_lat=24, n_lon=48)
+    small = Mesh(uv_sphere(n_lat=12, n_lon=24).vertices * 0.3, uv_sphere(n_lat=12, n_lon=24).faces, name="occluder")
+    cam = ring_cameras(1, size=40, radius=2.0)[0]
+    small = Mesh(small.vertices + 0.55 * (cam.center / np.linalg.norm(cam.center)), small.faces, name="occluder")
+    mat = Material("lambertian", {"base_color": [0.6, 0.6, 0.6]})
+    light = Light(np.ones(3))
+    hidden = render_faces(big, cam, occluder=small).face_id < 0
+    alone_cover = render_faces(big, cam).face_id >= 0
+    in_front = alone_cover & hidden
+    assert in_front.sum() > 20
+    for renderer in (mitsuba_renderer, torch_renderer):
+        plain = renderer.render(big, mat, light, cam)
+        out = renderer.render(big, mat, light, cam, occluder=small)
+        assert np.all(out.color[in_front] == 0) and np.all(out.alpha[in_front] == 0)
+        ring = alone_cover & ~hidden & binary_dilation(in_front, iterations=3)
+        far = (out.alpha > 0.999) & (np.abs(np.indices(hidden.shape) - 20).max(0) >= 15)
+        assert ring.sum() > 10 and far.sum() > 10
+        assert out.color[ring].mean() < 0.97 * plain.color[ring].mean()  # shadowed around the occluder
+        np.testing.assert_allclose(out.color[far].mean(0), plain.color[far].mean(0), rtol=0.05)

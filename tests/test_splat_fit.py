@@ -13,7 +13,8 @@ from pgc.pipeline.settings_splats import FitSplatsSettings
 
 torch = pytest.importorskip("torch")
 
-from pgc.splats.fitplan import initial_count  # noqa: E402
+from pgc.splats.fitplan import crop_view, focus_on_garment, initial_count  # noqa: E402
+from pgc.splats.init import colors_from_views, sample_on_mesh  # noqa: E402
 from pgc_torch.splat.fit import heldout_psnr  # noqa: E402
 from pgc_torch.splat.renderer import TorchSplatRenderer  # noqa: E402
 
@@ -51,7 +52,8 @@ def test_fit_learns_keeps_garment_and_selects_on_heldout_views(scene):
     rec = Recorder()
     fit = renderer.fit(capture, mesh, FAST, Reporter(rec))
     g, f = fit.gaussians, fit.figures
-    assert f["iterations"] == 40 and f["initial_gaussians"] == initial_count(capture, FitSplatsSettings(**FAST))
+    focused, _ = focus_on_garment(capture, mesh, FitSplatsSettings(**FAST))
+    assert f["iterations"] == 40 and f["initial_gaussians"] == initial_count(focused, FitSplatsSettings(**FAST))
     losses = [fig["loss"] for _, fig in rec.progress if "loss" in fig]
     assert losses[-1] < 0.7 * losses[0]
     assert f["psnr_heldout"] >= f["psnr_heldout_full"] - FitSplatsSettings().margin_db - 1e-9
@@ -92,7 +94,7 @@ def test_heldout_psnr_of_the_ground_truth_layout_is_high(scene):
 
     capture, mesh = scene
     views = F._prepare(capture, 0.03)
-    model = F._Model(F.sample_on_mesh(mesh, 500, np.random.default_rng(0), 0), mesh)
+    model = F._Model(sample_on_mesh(mesh, 500, np.random.default_rng(0), 0), mesh)
     with torch.no_grad():
         model.params["opacity_logits"].fill_(-30.0)  # invisible: the render is the background
     for v in views:
@@ -107,3 +109,50 @@ def test_backfacing_faces_are_those_no_camera_sees_from_the_front():
     mesh = Mesh(np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2], [0, 2, 1]]))  # normals +z, -z
     front = Camera(np.eye(3), np.diag([1.0, -1.0, -1.0]), [0, 0, 5.0], 4, 4)  # at z = +5 looking down -z
     np.testing.assert_array_equal(_backfacing_faces(mesh, [front]), [False, True])
+
+
+def test_a_cropped_view_renders_the_crop_of_the_full_render(scene):
+    from pgc.splats.binding import bind
+
+    capture, mesh = scene
+    g = sample_on_mesh(mesh, 400, np.random.default_rng(2), 1)
+    g.opacity_logits[:] = 1.0
+    view = capture.views[1]
+    crop = crop_view(view, 7, 5, 31, 36)
+    renderer = TorchSplatRenderer({"threads": 1})
+    world = bind(g, mesh.vertices, mesh.faces)
+    full, part = renderer.render(world, view.camera), renderer.render(world, crop.camera)
+    assert part.color.shape == (31, 24, 3) and crop.image.shape == (31, 24, 3)
+    np.testing.assert_array_equal(crop.image, view.image[5:36, 7:31])
+    np.testing.assert_allclose(part.color, full.color[5:36, 7:31], atol=1e-5)
+    np.testing.assert_allclose(part.alpha, full.alpha[5:36, 7:31], atol=1e-5)
+
+
+def test_focus_crops_keep_every_garment_pixel_and_the_garment_faces(scene):
+    capture, mesh = scene
+    s = FitSplatsSettings(**FAST)
+    focused, faces = focus_on_garment(capture, mesh, s)
+    ids = list(capture.garment_label_ids)
+    assert len(focused.views) == sum(bool(np.isin(v.segmentation, ids).any()) for v in capture.views)
+    for full, crop in zip([v for v in capture.views if np.isin(v.segmentation, ids).any()], focused.views):
+        assert np.isin(crop.segmentation, ids).sum() == np.isin(full.segmentation, ids).sum()
+        assert crop.image.size < full.image.size
+    garment = np.isin(mesh.face_labels, ids)
+    assert faces[garment].all() and 0 < faces.sum() < len(faces)
+    same, none = focus_on_garment(capture, mesh, s.model_copy(update={"focus": "all"}))
+    assert same is capture and none is None
+
+
+def test_initial_colours_are_the_colour_of_the_images_that_see_them(scene):
+    capture, mesh = scene
+    colour = np.array([0.2, 0.45, 0.7], np.float32)
+    views = [type(v)(v.camera, np.broadcast_to(colour, v.image.shape).copy()) for v in capture.views]
+    g = sample_on_mesh(mesh, 300, np.random.default_rng(3), 0)
+    coloured = colors_from_views(g, mesh, views)
+    from pgc.splats.sh import sh_to_rgb_dc
+
+    rgb = sh_to_rgb_dc(coloured.sh[:, 0])
+    changed = np.any(coloured.sh != g.sh, axis=(1, 2))
+    assert changed.mean() > 0.8  # all but Gaussians no camera sees
+    np.testing.assert_allclose(rgb[changed], np.broadcast_to(colour, rgb[changed].shape), atol=1e-6)
+    np.testing.assert_array_equal(coloured.sh[~changed], g.sh[~changed])

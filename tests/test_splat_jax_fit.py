@@ -85,7 +85,7 @@ def test_fit_converges_and_resumes(tmp_path):
     renderer = JaxSplatRenderer({"tile_size": 8, "chunk_size": 16})
     mesh = _octahedron_sphere()
     capture = _capture(renderer, mesh)
-    settings = {"iterations": 120, "min_gaussians": 400, "gaussians_per_pixel": 1.0, "log_every": 10,
+    settings = {"iterations": 120, "min_gaussians": 400, "gaussians_per_pixel": 1.0, "log_every": 10, "init_color": "random",
                 "holdout_every": 3, "lr_position": 1e-3, "lr_position_final": 1e-5, "select_count": False,
                 "checkpoint_dir": str(tmp_path), "checkpoint_every": 60}
     progress = _Progress()

@@ -48,8 +48,8 @@ class MitsubaPBRRenderer(PBRRenderer):
     def render(self, mesh: Mesh, material: Material, light: Light, camera: Camera,
                spp: int | None = None, occluder: Mesh | None = None, max_depth: int | None = None) -> RenderOutput:
         """Render ``mesh`` from ``camera``: linear RGB over black and alpha coverage. ``spp`` and
-        ``max_depth`` override the options; ``occluder`` adds a grey Lambertian mesh that shadows (and
-        shows, in the alpha too)."""
+        ``max_depth`` override the options; ``occluder`` adds a grey Lambertian mesh that shadows and
+        inter-reflects; pixels whose centre sees the occluder first are returned empty."""
         mi = mitsuba()
         scene = self._scene(mesh, material, light, occluder, max_depth)
         spp = spp or self.options.spp
@@ -59,6 +59,10 @@ class MitsubaPBRRenderer(PBRRenderer):
             total += n * np.asarray(mi.render(scene, sensor=sensor, spp=n, seed=self.options.seed + i),
                                     dtype=np.float64)
         img = (total / spp).astype(np.float32)
+        if occluder is not None:
+            from pgc.texture.visibility import render_faces
+
+            img *= (render_faces(mesh, camera, occluder=occluder).face_id >= 0)[..., None]
         return RenderOutput(color=np.ascontiguousarray(img[..., :3]), alpha=np.ascontiguousarray(img[..., 3]))
 
     def render_texture(self, mesh: Mesh, material: Material, light: Light, camera: Camera,

@@ -2,8 +2,14 @@
 
 - ``G_t``: the optimised Gaussians rendered on the deformed garment (near field);
 - ``S_t``: the same Gaussians with their colour replaced by the far-field texture ``T_t`` (the PBR
-  renderer's outgoing radiance in texture space) looked up through their parent triangle, as the DC SH
-  term (higher SH set to zero), all other parameters unchanged;
+  renderer's outgoing radiance in texture space) as the DC SH term (higher SH set to zero), all other
+  parameters unchanged. The paper looks ``T_t`` up through each Gaussian's parent triangle
+  (:func:`gaussian_uvs`, lookup ``parent``); the default lookup ``visible`` takes the texel of the garment
+  surface seen along the camera ray through the Gaussian's centre (:func:`visible_surface_uvs`), which is the
+  same texel for a Gaussian on the visible surface, and the right one for a Gaussian bound to a triangle that
+  faces away but shows through or beside the front (those would carry the black radiance of a back face);
+- the body occludes both: splat pixels whose depth lies behind the body's z-buffer are removed
+  (:func:`hide_behind`);
 - ``l``: the alpha-aware low-pass of the filter role, ``h = 1 - l``.
 Compositing is done on un-premultiplied colours (render colour / alpha) so the alpha-aware blur sees the
 garment's own colour; the result is re-composited over the background with the near-field alpha.
@@ -15,12 +21,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pgc.geometry.raster import Raster
 from pgc.roles.filter import Filter
 from pgc.roles.splat_renderer import RenderOutput
 from pgc.splats.binding import triangle_frames
 from pgc.splats.sh import rgb_to_sh_dc
 from pgc.texture.sample import sample_uv
-from pgc.types import GaussianSet, Mesh
+from pgc.types import Camera, GaussianSet, Mesh
 
 ALPHA_EPS = 1e-4
 
@@ -38,6 +45,47 @@ def gaussian_uvs(gaussians: GaussianSet, mesh: Mesh) -> np.ndarray:
     corners = mesh.vertices[mesh.faces[p]]
     bary = _barycentric_clamped(world, corners)
     return np.einsum("nk,nkc->nc", bary, mesh.uv[mesh.face_uv[p]].astype(np.float64))
+
+
+def visible_surface_uvs(means: np.ndarray, raster: Raster, mesh: Mesh, camera: Camera,
+                        fallback: np.ndarray, reach: float = 2.0) -> np.ndarray:
+    """(N, 2) UV of the surface point of ``mesh`` that ``camera`` sees through each world point ``means``.
+
+    ``raster``: ``mesh`` (deformed as ``means``) rasterised from ``camera``. A point projecting onto an empty
+    pixel within ``reach`` pixels of the silhouette takes the nearest covered pixel's surface point; points
+    farther out or outside the image keep their ``fallback`` UV (their parent-triangle UV).
+    """
+    from scipy.ndimage import distance_transform_edt
+
+    xy, z = camera.project(np.asarray(means, np.float64))
+    h, w = raster.face_id.shape
+    ok = (z > 0) & np.all(np.isfinite(xy), axis=1)
+    col = np.floor(np.where(ok, xy[:, 0], -1)).astype(np.int64)
+    row = np.floor(np.where(ok, xy[:, 1], -1)).astype(np.int64)
+    ok &= (col >= 0) & (col < w) & (row >= 0) & (row < h)
+    row, col = row.clip(0, h - 1), col.clip(0, w - 1)
+    empty = raster.face_id < 0
+    if empty.any() and not empty.all():
+        dist, (near_row, near_col) = distance_transform_edt(empty, return_indices=True)
+        ok &= dist[row, col] <= reach
+        row, col = near_row[row, col], near_col[row, col]
+    face = np.where(ok, raster.face_id[row, col], -1)
+    hit = face >= 0
+    uvs = np.array(fallback, dtype=np.float64, copy=True)
+    bary = raster.bary[row[hit], col[hit]]
+    uvs[hit] = np.einsum("nk,nkc->nc", bary, mesh.uv[mesh.face_uv[face[hit]]].astype(np.float64))
+    return uvs
+
+
+def hide_behind(render: RenderOutput, occluder_depth: np.ndarray, depth: np.ndarray | None = None) -> RenderOutput:
+    """``render`` with pixels removed where the occluder's z-buffer (camera depth, +inf where empty) lies in
+    front of ``depth`` (default: the render's expected depth, which averages over every splat layer of the
+    pixel, so a garment's first surface, when known, is the better test)."""
+    d = render.depth if depth is None else depth
+    if d is None:
+        raise ValueError("hide_behind needs the splat depth: the splat renderer returned none")
+    keep = ~((occluder_depth < d) & (render.alpha > 0))
+    return RenderOutput(render.color * keep[..., None], render.alpha * keep, d * keep)
 
 
 def _barycentric_clamped(points: np.ndarray, tri: np.ndarray) -> np.ndarray:

@@ -37,14 +37,18 @@ def rendered_frames(run_dir: Path) -> tuple[dict[str, Any], list[int]]:
 
 def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], camera_names: list[str],
                            spp: int, reporter: Reporter) -> list[dict[str, np.ndarray]]:
-    """Ground-truth renders of the run's frames (cached in ``RUN/gt``)."""
+    """Ground-truth renders of the run's frames (cached in ``RUN/gt/<key of the run's motion and the capture>``)."""
     from pgc.io.asset import read_asset
     from pgc.io.capture import read_capture
     from pgc.pipeline.transfer import embed, place
     from pgc.synth.frames import render_frames
     from pgc.synth.ground_truth import read_ground_truth
 
-    cache = run_dir / "gt"
+    from pgc.pipeline.cache import content_key, file_key
+
+    key = content_key("gt", file_key(run_dir / "garment.npz"), file_key(run_dir / "body.npz"), camera_names,
+                      file_key(capture_dir / "ground_truth" / "scene.json"))
+    cache = run_dir / "gt" / key  # a new simulation or capture is a new folder: never a stale frame
     paths = [cache / f"frame_{t:04d}_spp{spp}.npz" for t in frames]
     if all(p.is_file() for p in paths):
         return [dict(np.load(p)) for p in paths]

@@ -20,7 +20,9 @@ from pgc.events import Reporter
 from pgc.io.atomic import write_json
 from pgc.pipeline.animate import read_run
 from pgc.pipeline.cache import StageCache, array_key, content_key, file_key
-from pgc.pipeline.compose import compose, far_field_gaussians, gaussian_uvs, unpremultiply
+from pgc.geometry.raster import rasterize
+from pgc.pipeline.compose import (compose, far_field_gaussians, gaussian_uvs, hide_behind, unpremultiply,
+                                  visible_surface_uvs)
 from pgc.pipeline.garment import body_occluder
 from pgc.pipeline.stage_io import save_npz
 from pgc.splats.binding import bind
@@ -52,16 +54,31 @@ class HybridRenderer:
 
     def layers(self, vertices: np.ndarray, camera: Camera, occluder: Mesh | None = None) -> dict[str, Any]:
         """Near-field, far-field and PBR-only renders of the garment at ``vertices`` (before composition);
-        ``occluder`` (the body in the same frame) shadows the far-field texture."""
+        ``occluder`` (the body in the same frame) shadows the far field and, with ``body_occludes``, hides
+        the garment where it is in front."""
         mesh = self.mesh_at(vertices)
         faces = self.asset.garment.faces
-        near = self.splats.render(bind(self.asset.gaussians, vertices, faces), camera)
-        size = self.settings.texture_size
-        texture, _ = self.pbr.render_texture(mesh, self.asset.material, self.light, camera, (size, size),
-                                             occluder=occluder)
-        far_set = far_field_gaussians(self.asset.gaussians, self.uvs, texture)
-        far = self.splats.render(bind(far_set, vertices, faces), camera)
-        pbr = self.pbr.render(mesh, self.asset.material, self.light, camera)
+        world = bind(self.asset.gaussians, vertices, faces)
+        near = self.splats.render(world, camera)
+        raster = rasterize(camera, vertices, faces)
+        hides = occluder if self.settings.body_occludes else None
+        pbr = self.pbr.render(mesh, self.asset.material, self.light, camera, occluder=hides)
+        far = pbr
+        if self.settings.far_source == "splats":
+            size = self.settings.texture_size
+            texture, _ = self.pbr.render_texture(mesh, self.asset.material, self.light, camera, (size, size),
+                                                 occluder=occluder)
+            uvs = self.uvs
+            if self.settings.far_lookup == "visible":
+                uvs = visible_surface_uvs(world.means, raster, mesh, camera, self.uvs)
+            far = self.splats.render(bind(far_field_gaussians(self.asset.gaussians, uvs, texture), vertices, faces),
+                                     camera)
+        if hides is not None:  # the garment's first surface decides; beyond its silhouette, the splats' depth
+            depth = np.where(np.isfinite(raster.depth), raster.depth, near.depth)
+            body_depth = rasterize(camera, hides.vertices, hides.faces).depth
+            near = hide_behind(near, body_depth, depth)
+            if far is not pbr:
+                far = hide_behind(far, body_depth, depth)
         return {"near": near, "far": far, "pbr": pbr}
 
     def frame(self, vertices: np.ndarray, camera: Camera, kernel_size: int,
@@ -70,6 +87,14 @@ class HybridRenderer:
         h = compose(lay["near"], lay["far"], self.filter, kernel_size)
         return {"hybrid": h.hybrid, "near": h.near, "far": h.far, "pbr": lay["pbr"].color,
                 "alpha": h.alpha, "pbr_alpha": lay["pbr"].alpha, "low_far": h.low_far, "high_near": h.high_near}
+
+
+def kernel_views(asset: GarmentAsset, capture, count: int) -> list:
+    """Up to ``count`` capture views for the kernel rule: those the splat fit held out when it recorded them
+    (on views it trained on, the near field's error is optimistic and pulls toward large kernels), else any."""
+    held = set(asset.figures.get("splats", {}).get("heldout_views", []))
+    pool = [v for v in capture.views if v.camera.name in held] or capture.views
+    return spread(pool, count)
 
 
 def choose_kernel(renderer: HybridRenderer, capture, cfg: RunConfig) -> dict[str, Any]:
@@ -81,14 +106,16 @@ def choose_kernel(renderer: HybridRenderer, capture, cfg: RunConfig) -> dict[str
     rest = renderer.asset.garment.vertices
     body = body_occluder(renderer.asset.body, capture.garment_label_ids)
     choices = []
-    for view in spread(capture.views, settings.kernel_views):
+    views = kernel_views(renderer.asset, capture, settings.kernel_views)
+    for view in views:
         lay = renderer.layers(rest, view.camera, body)
         mask = garment_mask(view, capture.garment_label_ids)
         choices.append(select_kernel(settings.kernel, renderer.filter, view.image, lay["near"].alpha,
                                      unpremultiply(lay["near"]), unpremultiply(lay["far"]), lay["far"].alpha, mask))
     sizes = [c.size for c in choices]
     size = int(np.median(sizes)) | 1
-    return {"kernel_size": size, "criterion": choices[0].criterion, "per_view": sizes}
+    return {"kernel_size": size, "criterion": choices[0].criterion, "per_view": sizes,
+            "kernel_views": [v.camera.name for v in views]}
 
 
 def envmap_light(run_dir: str | Path, path: str | Path) -> Light:

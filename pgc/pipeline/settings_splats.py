@@ -29,7 +29,16 @@ class FitSplatsSettings(Options):
         "as the paper's 30000 steps"))
     lambda_l1: float = Field(0.8, ge=0.0, le=1.0, description="weight of L1 vs (1 - SSIM) (paper 0.8)")
     lambda_mask: float = Field(0.1, ge=0.0, description="mask loss weight (paper 0.1)")
-    mask_band: float = Field(0.03, ge=0.0, description="contour band half-width as a fraction of image height (paper 0.03)")
+    mask_band: float = Field(0.03, ge=0.0, description=(
+        "contour band half-width as a fraction of the (cropped, see focus) image height (paper 0.03)"))
+    focus: str = Field("garment", pattern="^(garment|all)$", description=(
+        "'garment': train on each view cropped to the garment's box (plus focus_margin) and place Gaussians only "
+        "on faces seen inside a crop, so the steps spend their pixels and Gaussians where the kept splats are; "
+        "'all': whole images and the whole mesh"))
+    init_color: str = Field("views", pattern="^(views|random)$", description=(
+        "initial DC colour: 'views' = median of the training images that see the Gaussian (a head start for short "
+        "CPU fits), 'random' = U(0.5, 0.7) as in 3DGS"))
+    focus_margin: float = Field(0.06, ge=0.0, le=1.0, description="crop margin, fraction of the image height")
     max_sh_degree: int = Field(3, ge=0, le=3)
     sh_interval: int = Field(500, ge=1, description=(
         "steps between SH degree increases at the paper's 30000 steps; scaled to the fraction of the fit"))

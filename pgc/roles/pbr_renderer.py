@@ -2,7 +2,8 @@
 
 Contract
 - :meth:`render`: the mesh seen from ``camera`` -> :class:`pgc.roles.splat_renderer.RenderOutput`
-  (linear RGB radiance over a black background, alpha = pixel coverage).
+  (linear RGB radiance over a black background, alpha = pixel coverage). ``occluder`` (e.g. the body)
+  shadows the mesh and hides it where it is in front; it is not itself returned (zero colour and alpha).
 - :meth:`render_texture`: outgoing radiance toward ``camera``'s centre at every texel centre of the mesh's
   UV atlas, (H, W, 3), plus the (H, W) coverage of the atlas (0 outside charts). Shadowing and indirect
   light are included where the implementation supports them (documented per implementation);
@@ -36,8 +37,9 @@ class PBRRenderer(RoleImplementation, ABC):
     role = "pbr_renderer"
 
     @abstractmethod
-    def render(self, mesh: Mesh, material: Material, light: Light, camera: Camera) -> RenderOutput:
-        """Render ``mesh`` with ``material`` under ``light`` from ``camera``."""
+    def render(self, mesh: Mesh, material: Material, light: Light, camera: Camera,
+               occluder: Mesh | None = None) -> RenderOutput:
+        """Render ``mesh`` with ``material`` under ``light`` from ``camera`` (``occluder``: see the contract)."""
 
     @abstractmethod
     def render_texture(self, mesh: Mesh, material: Material, light: Light, camera: Camera,

@@ -18,7 +18,7 @@ import numpy as np
 
 from pgc.errors import PGCDataError
 from pgc.pipeline.settings_splats import FitSplatsSettings
-from pgc.types import Camera, Capture, Mesh, View
+from pgc.types import Camera, Capture, GaussianSet, Mesh, View
 
 V = TypeVar("V")
 PAPER_ITERATIONS = 30000
@@ -95,6 +95,55 @@ def half_resolution(view: View) -> View:
         return None if a is None else cv2.resize(np.asarray(a, np.float32), size, interpolation=cv2.INTER_AREA)
 
     return View(camera, shrink(view.image), mask=shrink(view.mask), background=shrink(view.background))
+
+
+def crop_view(view: View, x0: int, y0: int, x1: int, y1: int) -> View:
+    """``view`` restricted to pixels [x0, x1) x [y0, y1) (camera, image, mask, segmentation, background)."""
+    def cut(a: np.ndarray | None) -> np.ndarray | None:
+        return None if a is None else np.ascontiguousarray(a[y0:y1, x0:x1])
+
+    return View(view.camera.cropped(x0, y0, x1 - x0, y1 - y0), cut(view.image), mask=cut(view.mask),
+                segmentation=cut(view.segmentation), background=cut(view.background))
+
+
+def focus_on_garment(capture: Capture, mesh: Mesh, s: FitSplatsSettings) -> tuple[Capture, np.ndarray | None]:
+    """With ``focus = 'garment'``: the capture with every view cropped to its garment pixels' box grown by
+    ``focus_margin`` x image height (views without garment pixels are dropped), and the (F,) faces of ``mesh``
+    whose centroid projects inside some crop (garment faces always). Otherwise, or when the capture has no
+    garment labels or a view no segmentation, ``(capture, None)``."""
+    from dataclasses import replace
+
+    if (s.focus != "garment" or not capture.garment_label_ids or mesh.face_labels is None
+            or any(v.segmentation is None for v in capture.views)):
+        return capture, None  # nothing to find the garment with: whole images
+    ids = list(capture.garment_label_ids)
+    centroids = mesh.vertices[mesh.faces].mean(axis=1)
+    faces = np.isin(mesh.face_labels, ids)
+    views = []
+    for v in capture.views:
+        rows, cols = np.nonzero(np.isin(v.segmentation, ids))
+        if rows.size == 0:
+            continue
+        pad = int(round(s.focus_margin * v.camera.height))
+        x0, y0 = max(0, int(cols.min()) - pad), max(0, int(rows.min()) - pad)
+        x1, y1 = min(v.camera.width, int(cols.max()) + 1 + pad), min(v.camera.height, int(rows.max()) + 1 + pad)
+        crop = crop_view(v, x0, y0, x1, y1)
+        xy, z = crop.camera.project(centroids)
+        faces |= (z > 0) & (xy[:, 0] >= 0) & (xy[:, 0] < x1 - x0) & (xy[:, 1] >= 0) & (xy[:, 1] < y1 - y0)
+        views.append(crop)
+    if not views:
+        raise PGCDataError("fit_splats: no view shows the garment (segmentation); set stages.fit_splats.focus = 'all'")
+    return replace(capture, views=views), faces
+
+
+def initial_gaussians(capture: Capture, mesh: Mesh, s: FitSplatsSettings, rng: np.random.Generator,
+                      faces: np.ndarray | None, views: Sequence[View]) -> GaussianSet:
+    """:func:`initial_count` Gaussians on ``faces`` of ``mesh`` (all when None), coloured from ``views`` when
+    ``init_color = 'views'``."""
+    from pgc.splats.init import colors_from_views, sample_on_mesh
+
+    g = sample_on_mesh(mesh, initial_count(capture, s), rng, s.max_sh_degree, faces)
+    return colors_from_views(g, mesh, list(views)) if s.init_color == "views" else g
 
 
 def training_view(train: Sequence[V], order: list[int], rng: np.random.Generator, p: float,

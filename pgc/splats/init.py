@@ -7,7 +7,7 @@ import numpy as np
 from pgc.errors import PGCDataError
 from pgc.splats.binding import unbind_points
 from pgc.splats.sh import num_sh_coeffs, rgb_to_sh_dc
-from pgc.types import GaussianSet, Mesh
+from pgc.types import GaussianSet, Mesh, View
 
 INIT_OPACITY = 0.1
 INIT_COLOR_RANGE = (0.5, 0.7)
@@ -39,3 +39,24 @@ def sample_on_mesh(mesh: Mesh, count: int, rng: np.random.Generator, sh_degree: 
     logit = np.log(INIT_OPACITY / (1.0 - INIT_OPACITY))
     return GaussianSet(parent=parent, means=unbind_points(points, parent, mesh.vertices, mesh.faces),
                        quats=quats, log_scales=np.zeros((count, 3)), opacity_logits=np.full(count, logit), sh=sh)
+
+
+def colors_from_views(gaussians: GaussianSet, mesh: Mesh, views: list[View]) -> GaussianSet:
+    """``gaussians`` with their DC colour set to the per-channel median, over the ``views`` that see it (z-buffer
+    of ``mesh``), of the image at its centre: the fit then starts from the captured radiance instead of grey
+    noise. Gaussians no view sees keep their colour."""
+    from pgc.splats.binding import bind
+    from pgc.texture.sample import sample_bilinear
+    from pgc.texture.visibility import render_faces, visible_points
+
+    points = bind(gaussians, mesh.vertices, mesh.faces).means
+    samples = np.full((len(views), len(points), 3), np.nan)
+    for i, view in enumerate(views):
+        seen, xy = visible_points(points, gaussians.parent, render_faces(mesh, view.camera), view.camera)
+        samples[i, seen] = sample_bilinear(view.image, xy[seen])
+    seen_any = np.any(np.isfinite(samples[..., 0]), axis=0)
+    sh = gaussians.sh.copy()
+    if seen_any.any():
+        sh[seen_any, 0] = rgb_to_sh_dc(np.nanmedian(samples[:, seen_any], axis=0))
+    return GaussianSet(gaussians.parent, gaussians.means, gaussians.quats, gaussians.log_scales,
+                       gaussians.opacity_logits, sh)

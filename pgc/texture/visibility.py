@@ -8,9 +8,19 @@ from pgc.geometry.raster import Raster, rasterize
 from pgc.types import Camera, Mesh
 
 
-def render_faces(mesh: Mesh, camera: Camera, vertices: np.ndarray | None = None) -> Raster:
-    """Nearest face, perspective-correct barycentrics and camera depth per pixel of ``camera``."""
-    return rasterize(camera, mesh.vertices if vertices is None else vertices, mesh.faces)
+def render_faces(mesh: Mesh, camera: Camera, vertices: np.ndarray | None = None,
+                 occluder: Mesh | None = None) -> Raster:
+    """Nearest face, perspective-correct barycentrics and camera depth per pixel of ``camera``.
+
+    With ``occluder``, pixels where the occluder is nearer are empty (face -1, depth +inf)."""
+    verts = mesh.vertices if vertices is None else vertices
+    if occluder is None:
+        return rasterize(camera, verts, mesh.faces)
+    both = rasterize(camera, np.concatenate([verts, occluder.vertices]),
+                     np.concatenate([mesh.faces, occluder.faces + len(verts)]))
+    hidden = both.face_id >= len(mesh.faces)
+    return Raster(np.where(hidden, -1, both.face_id), np.where(hidden, np.inf, both.depth),
+                  np.where(hidden[..., None], 0.0, both.bary))
 
 
 def visible_points(points: np.ndarray, faces_of_points: np.ndarray | None, raster: Raster, camera: Camera,

@@ -36,9 +36,8 @@ from pgc.pipeline.settings_splats import FitSplatsSettings
 from pgc.roles.splat_renderer import SplatFit
 from pgc.splats.binding import triangle_frames as np_triangle_frames
 from pgc.splats.fitplan import (CURVE_POINTS, REST_LR_FACTOR, auto_lr_factor, final_keep, fingerprint, finished,
-                                half_resolution, heldout_split, initial_count, outside_band, position_lr_at,
-                                progress, require_labels, select_model, sh_degree_at, training_view)
-from pgc.splats.init import sample_on_mesh
+                                focus_on_garment, half_resolution, heldout_split, initial_gaussians, outside_band,
+                                position_lr_at, progress, require_labels, select_model, sh_degree_at, training_view)
 from pgc.splats.reference import background_image
 from pgc.types import Capture, GaussianSet, Mesh, View
 from pgc_jax.splat.binding import apply_frames
@@ -254,13 +253,15 @@ def fit_splats(renderer, capture: Capture, mesh: Mesh, settings: FitSplatsSettin
     s = settings if isinstance(settings, FitSplatsSettings) else FitSplatsSettings.model_validate(settings or {})
     reporter = reporter or Reporter.silent()
     require_labels(mesh, s)
+    capture, faces = focus_on_garment(capture, mesh, s)
     dtype = renderer.dtype
     views = _prepare(capture, s.mask_band, dtype)
     train_idx, held_idx = heldout_split(len(views), s.holdout_every)
     train, held = [views[i] for i in train_idx], [views[i] for i in held_idx]
     rng = np.random.default_rng(s.seed)
-    count = initial_count(capture, s)
-    model = _Model(renderer, sample_on_mesh(mesh, count, rng, s.max_sh_degree), mesh)
+    initial = initial_gaussians(capture, mesh, s, rng, faces, [capture.views[i] for i in train_idx])
+    count = len(initial)
+    model = _Model(renderer, initial, mesh)
     adam = {"m": {n: jnp.zeros_like(t) for n, t in model.params.items()},
             "v": {n: jnp.zeros_like(t) for n, t in model.params.items()}}
 
@@ -325,6 +326,7 @@ def fit_splats(renderer, capture: Capture, mesh: Mesh, settings: FitSplatsSettin
         final_degree = sh_degree_at(p, s)
         figures: dict[str, Any] = {"iterations": step, "initial_gaussians": count, "fit_seconds": fit_seconds,
                                    "time_to_psnr": curve, "views_train": len(train), "views_heldout": len(held),
+                                   "heldout_views": [v.camera.name for v in held],
                                    "lr_factor": lr_factor or 1.0, "chunk_capacity_changes": model.compiles}
         contrib = model.contributions(train, final_degree)
         keep, degree = select_model(contrib, lambda k, d: heldout_psnr(model, held, d, k), final_degree, bool(held),

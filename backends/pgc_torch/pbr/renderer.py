@@ -109,15 +109,16 @@ class TorchPBRRenderer(PBRRenderer):
         return out
 
     # -- role interface -----------------------------------------------------------------------------------
-    def render(self, mesh: Mesh, material: Material, light: Light, camera: Camera) -> RenderOutput:
+    def render(self, mesh: Mesh, material: Material, light: Light, camera: Camera,
+               occluder: Mesh | None = None) -> RenderOutput:
         from pgc.texture.sample import sample_uv
         from pgc.texture.visibility import render_faces
 
         directions = fibonacci_directions(self.options.directions)
-        raster = render_faces(mesh, camera)
+        raster = render_faces(mesh, camera, occluder=occluder)
         covered = raster.face_id >= 0
         face, bary = raster.face_id[covered], raster.bary[covered]
-        points, normals, vis = self._surface(mesh, face, bary, directions)
+        points, normals, vis = self._surface(mesh, face, bary, directions, occluder)
         if material.base_color is not None:
             if mesh.uv is None:
                 raise PGCDataError(f"mesh '{mesh.name}' has no UVs for the material's base_color texture")

@@ -26,9 +26,8 @@ from pgc.metrics.psnr import psnr
 from pgc.pipeline.settings_splats import FitSplatsSettings
 from pgc.roles.splat_renderer import SplatFit
 from pgc.splats.fitplan import (CURVE_POINTS, REST_LR_FACTOR, auto_lr_factor, final_keep, fingerprint, finished,
-                                half_resolution, heldout_split, initial_count, outside_band, position_lr_at,
-                                progress, require_labels, select_model, sh_degree_at, training_view)
-from pgc.splats.init import sample_on_mesh
+                                focus_on_garment, half_resolution, heldout_split, initial_gaussians, outside_band,
+                                position_lr_at, progress, require_labels, select_model, sh_degree_at, training_view)
 from pgc.types import Camera, Capture, GaussianSet, Mesh, View
 
 from .binding import apply_frames, triangle_frames
@@ -144,13 +143,15 @@ def _fit(renderer, capture: Capture, mesh: Mesh, settings: FitSplatsSettings | d
     s = settings if isinstance(settings, FitSplatsSettings) else FitSplatsSettings.model_validate(settings or {})
     reporter = reporter or Reporter.silent()
     require_labels(mesh, s)
+    capture, faces = focus_on_garment(capture, mesh, s)
     views = _prepare(capture, s.mask_band)
     train_ids, held_ids = heldout_split(len(views), s.holdout_every)
     train, held = [views[i] for i in train_ids], [views[i] for i in held_ids]
     rng = np.random.default_rng(s.seed)
     torch.manual_seed(s.seed)
-    count = initial_count(capture, s)
-    model = _Model(sample_on_mesh(mesh, count, rng, s.max_sh_degree), mesh)
+    initial = initial_gaussians(capture, mesh, s, rng, faces, [capture.views[i] for i in train_ids])
+    count = len(initial)
+    model = _Model(initial, mesh)
     base_lr = {n: s.lr_other for n in NAMES[1:]} | {"sh_rest": s.lr_other * REST_LR_FACTOR}
     groups = [{"params": [model.params[n]], "lr": lr, "name": n} for n, lr in base_lr.items()]
     groups.insert(0, {"params": [model.params["means"]], "lr": s.lr_position, "name": "means"})
@@ -222,7 +223,8 @@ def _fit(renderer, capture: Capture, mesh: Mesh, settings: FitSplatsSettings | d
         fit_seconds = time.perf_counter() - start
         final_degree = degree_at(p)
         figures: dict[str, Any] = {"iterations": step, "initial_gaussians": count, "fit_seconds": fit_seconds,
-                                   "time_to_psnr": curve, "views_train": len(train), "views_heldout": len(held)}
+                                   "time_to_psnr": curve, "views_train": len(train), "views_heldout": len(held),
+                                   "heldout_views": [v.camera.name for v in held]}
         keep, degree = _model_selection(renderer, model, mesh, train, held, final_degree, s,
                                         capture.garment_label_ids, figures)
         figures["selection_seconds"] = time.perf_counter() - start - fit_seconds

@@ -1,0 +1,125 @@
+"""Body occlusion of the garment layers and the far-field lookup through the visible surface."""
+
+import numpy as np
+import pytest
+
+from pgc.pipeline.compose import hide_behind, visible_surface_uvs
+from pgc.roles.splat_renderer import RenderOutput
+from pgc.texture.visibility import render_faces
+from pgc.types import Mesh
+from conftest import look_at_camera
+
+
+def plane(z: float, u0: float, name: str) -> Mesh:
+    """A 2 m square at depth ``z`` (facing +z) whose UVs span [u0, u0 + 0.5] x [0, 1]."""
+    v = np.array([[-1, -1, z], [1, -1, z], [1, 1, z], [-1, 1, z]], float)
+    f = np.array([[0, 1, 2], [0, 2, 3]])
+    uv = np.array([[u0, 0], [u0 + 0.5, 0], [u0 + 0.5, 1], [u0, 1]], np.float32)
+    return Mesh(v, f, uv, f.copy(), name=name)
+
+
+def two_planes() -> Mesh:
+    front, back = plane(0.0, 0.0, "front"), plane(-0.5, 0.5, "back")
+    return Mesh(np.concatenate([front.vertices, back.vertices]), np.concatenate([front.faces, back.faces + 4]),
+                np.concatenate([front.uv, back.uv]), np.concatenate([front.face_uv, back.face_uv + 4]), name="two")
+
+
+CAMERA = look_at_camera([0, 0, 4], [0, 0, 0], 32, 24, 30.0, "cam")
+
+
+def test_visible_surface_uv_is_the_front_surface_for_points_behind_it():
+    mesh = two_planes()
+    camera = look_at_camera([0, 0, 4], [0, 0, 0], 32, 24, 300.0, "tele")  # 75 px per metre on the front plane
+    rng = np.random.default_rng(0)
+    xy = rng.uniform(-0.15, 0.15, (40, 2))
+    behind = np.column_stack([xy, np.full(40, -0.5)])  # on the back plane, hidden by the front one
+    fallback = np.full((40, 2), -7.0)
+    uvs = visible_surface_uvs(behind, render_faces(mesh, camera), mesh, camera, fallback)
+    # the front plane's UV of the point seen through each back point: along the ray from the camera
+    t = 4.0 / 4.5
+    seen = behind[:, :2] * t
+    expect = np.column_stack([(seen[:, 0] + 1) / 4, (seen[:, 1] + 1) / 2])
+    np.testing.assert_allclose(uvs, expect, atol=0.007)  # the UV is that of the pixel centre: half a pixel
+
+
+def test_visible_surface_uv_falls_back_outside_the_raster():
+    mesh = two_planes()
+    far_away = np.array([[50.0, 0.0, 0.0], [0.0, 0.0, 10.0]])  # outside the image; behind the camera
+    fallback = np.array([[0.1, 0.2], [0.3, 0.4]])
+    uvs = visible_surface_uvs(far_away, render_faces(mesh, CAMERA), mesh, CAMERA, fallback)
+    np.testing.assert_array_equal(uvs, fallback)
+
+
+def test_hide_behind_removes_pixels_where_the_occluder_is_nearer():
+    rng = np.random.default_rng(1)
+    alpha = rng.uniform(0.2, 1.0, (6, 8)).astype(np.float32)
+    render = RenderOutput(rng.uniform(0, 1, (6, 8, 3)).astype(np.float32) * alpha[..., None], alpha,
+                          np.full((6, 8), 3.0, np.float32))
+    occluder = np.full((6, 8), np.inf)
+    occluder[:, :3] = 2.0  # nearer: hides
+    occluder[:, 3:5] = 4.0  # farther: no effect
+    out = hide_behind(render, occluder)
+    assert np.all(out.alpha[:, :3] == 0) and np.all(out.color[:, :3] == 0)
+    np.testing.assert_array_equal(out.alpha[:, 3:], render.alpha[:, 3:])
+    np.testing.assert_array_equal(out.color[:, 3:], render.color[:, 3:])
+
+
+def test_hide_behind_needs_a_depth():
+    with pytest.raises(ValueError, match="depth"):
+        hide_behind(RenderOutput(np.zeros((2, 2, 3)), np.ones((2, 2))), np.zeros((2, 2)))
+
+
+def test_render_faces_with_an_occluder_empties_the_pixels_it_covers():
+    garment = plane(0.0, 0.0, "garment")
+    body = Mesh(np.array([[-0.2, -0.2, 0.5], [0.2, -0.2, 0.5], [0.2, 0.2, 0.5], [-0.2, 0.2, 0.5]]),
+                np.array([[0, 1, 2], [0, 2, 3]]), name="body")
+    plain = render_faces(garment, CAMERA)
+    hidden = render_faces(garment, CAMERA, occluder=body)
+    covered_by_body = render_faces(body, CAMERA).face_id >= 0
+    assert covered_by_body.sum() > 4
+    assert np.all(hidden.face_id[covered_by_body] == -1) and np.all(np.isinf(hidden.depth[covered_by_body]))
+    np.testing.assert_array_equal(hidden.face_id[~covered_by_body], plain.face_id[~covered_by_body])
+    # behind the garment the body hides nothing
+    behind = Mesh(body.vertices - [0, 0, 1.0], body.faces, name="behind")
+    np.testing.assert_array_equal(render_faces(garment, CAMERA, occluder=behind).face_id, plain.face_id)
+
+
+def _hybrid_renderer(far_source: str):
+    from pgc.config import resolve
+    from pgc.pipeline.render import HybridRenderer
+    from pgc.splats.init import sample_on_mesh
+    from pgc.types import GarmentAsset, Light, Material
+
+    garment = plane(0.0, 0.0, "garment")
+    garment = Mesh(garment.vertices, garment.faces, np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32),
+                   garment.face_uv, np.full(2, 2, np.int32), name="garment")
+    g = sample_on_mesh(garment, 600, np.random.default_rng(4), 0)
+    g.opacity_logits[:] = 3.0
+    g.log_scales[:] = np.log(0.08)
+    texture = np.full((8, 8, 3), 0.5, np.float32)
+    asset = GarmentAsset(garment, garment, g, Material("lambertian", {}, texture), Light(np.ones(3)))
+    cfg = resolve({"pbr_renderer": {"use": ["torch"], "torch": {"directions": 64, "threads": 1}},
+                   "stages": {"render": {"far_source": far_source, "texture_size": 32}}})
+    return HybridRenderer(asset, cfg)
+
+
+@pytest.mark.parametrize("far_source", ["splats", "mesh"])
+def test_the_body_in_front_empties_every_garment_layer(far_source):
+    pytest.importorskip("torch")
+    pytest.importorskip("open3d")
+    renderer = _hybrid_renderer(far_source)
+    body = Mesh(np.array([[-0.3, -0.3, 0.5], [0.3, -0.3, 0.5], [0.3, 0.3, 0.5], [-0.3, 0.3, 0.5]]),
+                np.array([[0, 1, 2], [0, 2, 3]]), name="body")
+    layers = renderer.layers(renderer.asset.garment.vertices, CAMERA, body)
+    covered = render_faces(body, CAMERA).face_id >= 0
+    assert covered.sum() > 10
+    for name in ("near", "far", "pbr"):
+        assert np.all(layers[name].alpha[covered] == 0), name
+        assert np.all(layers[name].color[covered] == 0), name
+        assert layers[name].alpha[~covered].max() > 0.9, name
+    if far_source == "mesh":
+        assert layers["far"] is layers["pbr"]
+    else:  # grey texture under a white sky: the splats' far field is the shaded grey, like the mesh
+        inside = (layers["far"].alpha > 0.99) & (layers["pbr"].alpha > 0.99)
+        np.testing.assert_allclose(np.median(layers["far"].color[inside], 0),
+                                   np.median(layers["pbr"].color[inside], 0), rtol=0.1)
