@@ -15,7 +15,9 @@ Material fit on synthetic captures (``pgc synth OUT --fabric F``): every model i
 garment mesh and base colour, the body as occluder) and compared on held-out views; the selection, the
 recovered parameters against the ground truth and the fit times are recorded.
 
-    python benchmarks/bench_pbr.py fit CAPTURE [CAPTURE ...] [--max-iterations 600] [--out bench_fit.json]
+    python benchmarks/bench_pbr.py fit CAPTURE [CAPTURE ...] [--max-image-side 96] [--out bench_fit.json]
+
+(fit settings: the material stage's defaults, ``pgc.pipeline.settings_material``, unless overridden)
 """
 
 from __future__ import annotations
@@ -153,13 +155,14 @@ def fit_main(argv: list[str]) -> list[dict[str, Any]]:
 
     ap = argparse.ArgumentParser(description="material fit on synthetic captures")
     ap.add_argument("captures", nargs="+", type=Path)
-    ap.add_argument("--max-iterations", type=int, default=600)
-    ap.add_argument("--max-image-side", type=int, default=80)
+    ap.add_argument("--max-iterations", type=int, help="default: the material stage's")
+    ap.add_argument("--max-image-side", type=int, help="default: the material stage's")
     ap.add_argument("--out", default="bench_fit.json")
     args = ap.parse_args(argv)
     # the generator shades its meshes flat (no vertex normals): match it
     renderer = default_registry().create("pbr_renderer", "mitsuba", {"max_depth": 4, "smooth_normals": False})
-    settings = MaterialFitSettings(max_iterations=args.max_iterations, max_image_side=args.max_image_side)
+    settings = MaterialFitSettings(**{k: v for k, v in (("max_iterations", args.max_iterations),
+                                                        ("max_image_side", args.max_image_side)) if v is not None})
     versions = {p: version(p) for p in ("mitsuba", "drjit", "numpy")}
     records = []
     for root in args.captures:
@@ -173,6 +176,7 @@ def fit_main(argv: list[str]) -> list[dict[str, Any]]:
                             "settings": {"brdf": model, **settings.model_dump()}, "seconds": row["seconds"],
                             "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
                             "errors": {"psnr_holdout": row["psnr_holdout"]}, "iterations": row["iterations"],
+                            "stopped": row["stopped"], "drift": row["drift"],
                             "params": row["params"], "radiance": row["radiance"], "truth": truth,
                             "chosen": sel.fit.material.brdf == model, "reason": sel.reason, "versions": versions})
             print(f"{fabric:12s} {model:10s} PSNR {row['psnr_holdout']:6.2f} dB  it {row['iterations']:4d}  "
@@ -180,6 +184,13 @@ def fit_main(argv: list[str]) -> list[dict[str, Any]]:
         print(f"{fabric:12s} chosen: {sel.fit.material.brdf} ({sel.reason}); total {seconds:.0f} s; truth {truth}",
               flush=True)
         Path(args.out).write_text(json.dumps(records, indent=1) + "\n")
+    fabrics = list(dict.fromkeys(r["preset"][4:] for r in records))
+    print("\nheld-out PSNR dB (iterations, seconds); * = chosen\n" + "model".ljust(11)
+          + "".join(f.ljust(24) for f in fabrics))
+    for model in dict.fromkeys(r["settings"]["brdf"] for r in records):
+        cells = {r["preset"][4:]: f"{r['errors']['psnr_holdout']:.2f}{'*' if r['chosen'] else ''} "
+                 f"({r['iterations']} it, {r['seconds']:.0f} s)" for r in records if r["settings"]["brdf"] == model}
+        print(model.ljust(11) + "".join(cells.get(f, "-").ljust(24) for f in fabrics))
     return records
 
 

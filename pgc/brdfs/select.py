@@ -27,7 +27,7 @@ class Selection:
     fit: MaterialFit
     """The chosen model's fit (its figures include ``selection``)."""
     table: dict[str, dict[str, Any]] = field(default_factory=dict)
-    """Per model: psnr_holdout, iterations, seconds, params, radiance."""
+    """Per model: psnr_holdout, iterations, stopped, drift, seconds, params, radiance."""
     reason: str = ""
 
 
@@ -71,6 +71,7 @@ def fit_and_select(renderer: Any, capture: Capture, mesh: Mesh, material: Materi
         psnr = psnr_from_mse(sq / max(n, 1.0))
         fits[name] = fit
         table[name] = {"psnr_holdout": psnr, "iterations": fit.figures.get("iterations"),
+                       "stopped": fit.figures.get("stopped"), "drift": fit.figures.get("drift"),
                        "seconds": fit.figures.get("seconds"), "params": fit.material.params,
                        "radiance": np.asarray(fit.light.radiance).tolist()}
     best = max(t["psnr_holdout"] for t in table.values())
