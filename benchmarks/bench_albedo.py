@@ -65,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     from pgc.albedo.shading_ratio import ShadingRatioEstimator
     from pgc.albedo.texture_stage import build_base_color, garment_mask
     from pgc.io.capture import read_capture
-    from pgc.pipeline.reconstruct import _white_shading
+    from pgc.pipeline.reconstruct import white_shading
     from pgc.pipeline.stage_io import load_mesh
     from pgc.texture.visibility import render_texture_to_view
     from pgc_onnx.albedo import OnnxAlbedoEstimator
@@ -78,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     full = load_mesh(args.stages / "mesh" / "mesh.npz")
     garment = load_mesh(args.stages / "garment" / "garment.npz")
     ids = capture.garment_label_ids
-    render_shading = _white_shading(config.load(None), full)
+    render_shading = white_shading(config.load(None), full)
     shadings: dict[str, np.ndarray] = {}
 
     def shading(view):

@@ -105,7 +105,7 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
     def compute_texture(folder: Path):
         from pgc.albedo.texture_stage import build_base_color
 
-        shading = _white_shading(cfg, full.value) if getattr(estimator, "needs_shading", False) else None
+        shading = white_shading(cfg, full.value) if getattr(estimator, "needs_shading", False) else None
         res = build_base_color(capture, garment, estimator, tex_settings.texture_size, tex_settings.num_views,
                                occluder=full.value, shading=shading, reporter=reporter)
         np.save(folder / "base_color.npy", res.texture)
@@ -147,7 +147,7 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
     return asset
 
 
-def _white_shading(cfg: RunConfig, mesh: Mesh):
+def white_shading(cfg: RunConfig, mesh: Mesh):
     """A function giving the white-albedo shading of ``mesh`` in a view (unit constant light)."""
     renderer = cfg.create("pbr_renderer")
     white = Material("lambertian", {}, None)
