@@ -123,3 +123,26 @@ def test_the_body_in_front_empties_every_garment_layer(far_source):
         inside = (layers["far"].alpha > 0.99) & (layers["pbr"].alpha > 0.99)
         np.testing.assert_allclose(np.median(layers["far"].color[inside], 0),
                                    np.median(layers["pbr"].color[inside], 0), rtol=0.1)
+
+
+@pytest.mark.parametrize("far_source", ["auto", "splats"])
+def test_auto_far_field_is_the_one_with_the_lower_kernel_view_error(far_source):
+    pytest.importorskip("torch")
+    pytest.importorskip("open3d")
+    from pgc.config import resolve
+    from pgc.pipeline.render import choose_kernel
+    from pgc.types import Capture, View
+
+    renderer = _hybrid_renderer(far_source)
+    shaded = renderer.pbr.render(renderer.asset.garment, renderer.asset.material, renderer.light, CAMERA)
+    seg = np.where(shaded.alpha > 0.5, 2, 0).astype(np.uint8)
+    capture = Capture([View(CAMERA, shaded.color, segmentation=seg)], labels={0: "background", 1: "body", 2: "tshirt"})
+    cfg = resolve({"stages": {"render": {"far_source": far_source, "kernel_views": 1}}})
+    chosen = choose_kernel(renderer, capture, cfg)
+    errors = chosen["far_errors"]
+    assert all(np.isfinite(e) and e >= 0 for e in errors.values())
+    if far_source == "auto":
+        assert set(errors) == {"splats", "mesh"} and chosen["far_source"] == min(errors, key=errors.get)
+    else:
+        assert set(errors) == {"splats"} and chosen["far_source"] == "splats"
+    assert renderer.far_source == chosen["far_source"] and chosen["kernel_size"] % 2 == 1

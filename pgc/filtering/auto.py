@@ -75,6 +75,14 @@ def _sizes(sizes: list[int] | None, shape: tuple[int, ...]) -> list[int]:
     return sizes
 
 
+def hybrid_error(filt: Filter, image: np.ndarray, gaussians: np.ndarray, gaussians_alpha: np.ndarray,
+                 far: np.ndarray, far_alpha: np.ndarray, mask: np.ndarray, kernel_size: int) -> float:
+    """``mean |I - (h(G) + l(S))|`` over ``mask`` (H, W) and channels: the error rule's score of one size."""
+    hybrid = filt.highpass(gaussians, gaussians_alpha, kernel_size) + filt.lowpass(far, far_alpha, kernel_size)
+    return _garment_mean(np.abs(np.asarray(image, np.float32) - hybrid), np.asarray(mask, np.float64)[..., None]
+                         ) / np.asarray(image).shape[2]
+
+
 def choose_kernel_by_error(filt: Filter, image: np.ndarray, gaussians: np.ndarray, gaussians_alpha: np.ndarray,
                            pbr: np.ndarray, pbr_alpha: np.ndarray, mask: np.ndarray | None = None,
                            sizes: list[int] | None = None, tolerance: float = 0.1) -> KernelChoice:
@@ -86,11 +94,9 @@ def choose_kernel_by_error(filt: Filter, image: np.ndarray, gaussians: np.ndarra
     if not image.shape == gaussians.shape == pbr.shape:
         raise PGCDataError(f"kernel choice: image {image.shape}, 3DGS render {gaussians.shape} and PBR render "
                            f"{pbr.shape} must have the same shape")
-    weights = _mask(mask, gaussians_alpha)[..., None]
-    scores = {}
-    for k in _sizes(sizes, image.shape):
-        hybrid = filt.highpass(gaussians, gaussians_alpha, k) + filt.lowpass(pbr, pbr_alpha, k)
-        scores[k] = _garment_mean(np.abs(image - hybrid), weights) / image.shape[2]
+    weights = _mask(mask, gaussians_alpha)
+    scores = {k: hybrid_error(filt, image, gaussians, gaussians_alpha, pbr, pbr_alpha, weights, k)
+              for k in _sizes(sizes, image.shape)}
     low, high = min(scores.values()), max(scores.values())
     size = min(k for k, e in scores.items() if e <= low + tolerance * (high - low))
     return KernelChoice(size, "error", scores)

@@ -47,6 +47,8 @@ class HybridRenderer:
         self.settings = cfg.stage("render")
         self.light = light or asset.light
         self.uvs = gaussian_uvs(asset.gaussians, asset.garment)
+        self.far_source = "splats" if self.settings.far_source == "auto" else self.settings.far_source
+        """The far field in use; 'auto' is resolved by :func:`choose_kernel`."""
 
     def mesh_at(self, vertices: np.ndarray) -> Mesh:
         g = self.asset.garment
@@ -64,7 +66,7 @@ class HybridRenderer:
         hides = occluder if self.settings.body_occludes else None
         pbr = self.pbr.render(mesh, self.asset.material, self.light, camera, occluder=hides)
         far = pbr
-        if self.settings.far_source == "splats":
+        if self.far_source == "splats":
             size = self.settings.texture_size
             texture, _ = self.pbr.render_texture(mesh, self.asset.material, self.light, camera, (size, size),
                                                  occluder=occluder)
@@ -98,23 +100,38 @@ def kernel_views(asset: GarmentAsset, capture, count: int) -> list:
 
 
 def choose_kernel(renderer: HybridRenderer, capture, cfg: RunConfig) -> dict[str, Any]:
-    """Apply the configured kernel rule to the training frame (capture pose) over a few capture views."""
+    """Apply the configured kernel rule to the training frame (capture pose) on the kernel views; with
+    ``far_source = 'auto'`` also choose the far field (and set it on ``renderer``)."""
     from pgc.albedo.texture_stage import garment_mask
-    from pgc.filtering.auto import select_kernel
+    from pgc.filtering.auto import hybrid_error, select_kernel
 
     settings = cfg.stage("render")
+    sources = ("splats", "mesh") if settings.far_source == "auto" else (settings.far_source,)
+    renderer.far_source = sources[0]  # 'splats' renders the mesh image too: one pass serves both
     rest = renderer.asset.garment.vertices
     body = body_occluder(renderer.asset.body, capture.garment_label_ids)
-    choices = []
     views = kernel_views(renderer.asset, capture, settings.kernel_views)
+    per_view = []
     for view in views:
         lay = renderer.layers(rest, view.camera, body)
+        far = {"splats": lay["far"], "mesh": lay["pbr"]} if len(sources) > 1 else {sources[0]: lay["far"]}
+        near = unpremultiply(lay["near"])
         mask = garment_mask(view, capture.garment_label_ids)
-        choices.append(select_kernel(settings.kernel, renderer.filter, view.image, lay["near"].alpha,
-                                     unpremultiply(lay["near"]), unpremultiply(lay["far"]), lay["far"].alpha, mask))
-    sizes = [c.size for c in choices]
-    size = int(np.median(sizes)) | 1
-    return {"kernel_size": size, "criterion": choices[0].criterion, "per_view": sizes,
+        per_view.append((view, near, lay["near"].alpha, {k: (unpremultiply(f), f.alpha) for k, f in far.items()},
+                         mask))
+    result: dict[str, Any] = {}
+    for source in sources:
+        choices = [select_kernel(settings.kernel, renderer.filter, v.image, a, g, *far[source], m)
+                   for v, g, a, far, m in per_view]
+        size = int(np.median([c.size for c in choices])) | 1
+        error = float(np.mean([hybrid_error(renderer.filter, v.image, g, a, *far[source], m, size)
+                               for v, g, a, far, m in per_view]))
+        result[source] = {"kernel_size": size, "criterion": choices[0].criterion,
+                          "per_view": [c.size for c in choices], "error": error}
+    chosen = min(result, key=lambda k: result[k]["error"])
+    renderer.far_source = chosen
+    return {**{k: v for k, v in result[chosen].items() if k != "error"}, "far_source": chosen,
+            "far_errors": {k: v["error"] for k, v in result.items()},
             "kernel_views": [v.camera.name for v in views]}
 
 
@@ -153,7 +170,7 @@ def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
     def compute(folder: Path):
         with reporter.stage("choose_kernel") as st:
             kernel = choose_kernel(renderer, capture, cfg)
-            st.record(kernel_size=kernel["kernel_size"])
+            st.record(kernel_size=kernel["kernel_size"], far_source=kernel["far_source"])
         vertices = np.load(run_dir / "garment.npz")["vertices"]
         with np.load(run_dir / "body.npz") as z:
             body_vertices, body_faces = z["vertices"], z["faces"]

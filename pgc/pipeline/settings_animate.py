@@ -17,9 +17,10 @@ class RenderSettings(Options):
     frame_stride: int = Field(10, ge=1, description="render every n-th simulated frame")
     texture_size: int = Field(256, ge=16, le=4096, description="far-field texture T_t resolution (texels)")
     kernel_views: int = Field(4, ge=1, description="training views used to choose the kernel")
-    far_source: str = Field("splats", pattern="^(splats|mesh)$", description=(
+    far_source: str = Field("auto", pattern="^(auto|splats|mesh)$", description=(
         "the far field S_t: 'splats' = the Gaussians coloured by the texture-space PBR radiance (the paper), "
-        "'mesh' = the PBR renderer's image of the mesh (no texture-space pass)"))
+        "'mesh' = the PBR renderer's image of the mesh (no texture-space pass), 'auto' = the one whose hybrid "
+        "has the lower error on the kernel views (measured with the kernel each source chooses there)"))
     far_lookup: str = Field("visible", pattern="^(visible|parent)$", description=(
         "where a Gaussian reads the far-field texture: 'parent' = its parent triangle (the paper), 'visible' = "
         "the garment surface seen through its centre (see pgc.pipeline.compose)"))
