@@ -17,10 +17,10 @@ import numpy as np
 
 from pgc.config import RunConfig
 from pgc.events import Reporter
+from pgc.geometry.raster import rasterize
 from pgc.io.atomic import write_json
 from pgc.pipeline.animate import read_run
 from pgc.pipeline.cache import StageCache, array_key, content_key, file_key
-from pgc.geometry.raster import rasterize
 from pgc.pipeline.compose import (compose, far_field_gaussians, gaussian_uvs, hide_behind, unpremultiply,
                                   visible_surface_uvs)
 from pgc.pipeline.garment import body_occluder
