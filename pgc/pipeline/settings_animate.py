@@ -16,7 +16,8 @@ class RenderSettings(Options):
     views: int = Field(4, ge=1, description="capture cameras used for novel frames (evenly spread)")
     frame_stride: int = Field(10, ge=1, description="render every n-th simulated frame")
     texture_size: int = Field(256, ge=16, le=4096, description="far-field texture T_t resolution (texels)")
-    kernel_views: int = Field(4, ge=1, description="training views used to choose the kernel")
+    kernel_views: int = Field(4, ge=1, description=(
+        "capture views the kernel (and an auto far field) is chosen on: those the splat fit held out, if recorded"))
     far_source: str = Field("auto", pattern="^(auto|splats|mesh)$", description=(
         "the far field S_t: 'splats' = the Gaussians coloured by the texture-space PBR radiance (the paper), "
         "'mesh' = the PBR renderer's image of the mesh (no texture-space pass), 'auto' = the one whose hybrid "
