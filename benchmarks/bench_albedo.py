@@ -54,6 +54,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("stages", type=Path)
     p.add_argument("--out", type=Path, default=Path("bench_albedo.json"))
     p.add_argument("--model", type=Path, default=None, help="ONNX model (default: the shipped one)")
+    p.add_argument("--shading-kernel", type=int, nargs="*", default=None, metavar="K",
+                   help="onnx runs with these shading_kernel settings (px; 0 = raw prediction; default: the option's)")
     p.add_argument("--skip", nargs="*", default=[], choices=["onnx", "shading_ratio"])
     p.add_argument("--camera-casts", type=float, default=0.0, metavar="G",
                    help="multiply each view by random per-channel gains in [1 - G, 1 + G] (seeded): uncalibrated "
@@ -89,7 +91,10 @@ def main(argv: list[str] | None = None) -> int:
 
     estimators = [("ground_truth", GroundTruthAlbedo(capture.views)), ("raw_image", RawImage())]
     if "onnx" not in args.skip:
-        estimators.append(("onnx", OnnxAlbedoEstimator({"model": str(args.model) if args.model else None})))
+        model = {"model": str(args.model) if args.model else None}
+        for k in args.shading_kernel if args.shading_kernel is not None else [None]:
+            estimators.append(("onnx" if k is None else f"onnx_k{k}",
+                               OnnxAlbedoEstimator(model if k is None else {**model, "shading_kernel": k})))
     if "shading_ratio" not in args.skip:
         estimators.append(("shading_ratio", ShadingRatioEstimator()))
     records = []

@@ -18,6 +18,17 @@ recovered parameters against the ground truth and the fit times are recorded.
     python benchmarks/bench_pbr.py fit CAPTURE [CAPTURE ...] [--max-image-side 96] [--out bench_fit.json]
 
 (fit settings: the material stage's defaults, ``pgc.pipeline.settings_material``, unless overridden)
+
+Where the fitted models differ: each model of a ``fit`` JSON is rendered (``--spp``, default the fit's
+``eval_spp``) on the capture's held-out and training views at the fit's image size, and its PSNR is split
+between grazing interior garment pixels (|cos| between the pixel's view ray and the flat face it sees below
+``--cos``) and the others. Two PSNRs: "plain", the selection's measure (one render: its Monte Carlo variance
+adds to the error), and "decorrelated", from sum w (p_A - t)(p_B - t) over two independently seeded renders,
+whose expectation is the squared error of the noise-free render (the renders' variance drops out; the
+capture's own noise stays; it is itself noisy, and reads inf when its estimate is not positive: use a
+high ``--spp``).
+
+    python benchmarks/bench_pbr.py grazing CAPTURE FIT_JSON [--cos 0.3] [--spp N] [--out bench_grazing.json]
 """
 
 from __future__ import annotations
@@ -149,6 +160,12 @@ def synthetic_fit_inputs(root: Path) -> tuple[Any, Any, Material, dict[str, Any]
     return capture, mesh, Material(truth["brdf"], {}, read_exr(gt / "base_color.exr")), truth
 
 
+def fit_renderer(seed: int = 0) -> Any:
+    """The ``mitsuba`` renderer of the fits (flat-shaded like the generator's meshes, no vertex normals)."""
+    return default_registry().create("pbr_renderer", "mitsuba", {"max_depth": 4, "smooth_normals": False,
+                                                                  "seed": seed})
+
+
 def fit_main(argv: list[str]) -> list[dict[str, Any]]:
     from pgc.brdfs.select import fit_and_select
     from pgc.pipeline.settings_material import MaterialFitSettings
@@ -159,8 +176,7 @@ def fit_main(argv: list[str]) -> list[dict[str, Any]]:
     ap.add_argument("--max-image-side", type=int, help="default: the material stage's")
     ap.add_argument("--out", default="bench_fit.json")
     args = ap.parse_args(argv)
-    # the generator shades its meshes flat (no vertex normals): match it
-    renderer = default_registry().create("pbr_renderer", "mitsuba", {"max_depth": 4, "smooth_normals": False})
+    renderer = fit_renderer()
     settings = MaterialFitSettings(**{k: v for k, v in (("max_iterations", args.max_iterations),
                                                         ("max_image_side", args.max_image_side)) if v is not None})
     versions = {p: version(p) for p in ("mitsuba", "drjit", "numpy")}
@@ -194,10 +210,92 @@ def fit_main(argv: list[str]) -> list[dict[str, Any]]:
     return records
 
 
+def view_cosines(mesh: Any, camera: Any, occluder: Any) -> np.ndarray:
+    """(H, W) |cos| between the ray through each pixel centre and the normal of the (flat) ``mesh`` face it
+    sees first; NaN where it sees no face of ``mesh`` (background, or ``occluder`` in front)."""
+    from pgc.texture.visibility import render_faces
+
+    face = render_faces(mesh, camera, occluder=occluder).face_id
+    _, rays = camera.rays()
+    cos = np.abs(np.sum(mesh.face_normals()[np.maximum(face, 0)] * rays, axis=-1))
+    return np.where(face >= 0, cos, np.nan)
+
+
+def grazing_main(argv: list[str]) -> list[dict[str, Any]]:
+    from pgc.brdfs.fitdata import masked_mse, prepare_views, split_occluders
+    from pgc.brdfs.select import holdout_split
+    from pgc.pipeline.settings_material import MaterialFitSettings
+
+    ap = argparse.ArgumentParser(description="held-out and training PSNR of fitted models: grazing pixels vs rest")
+    ap.add_argument("capture", type=Path)
+    ap.add_argument("fit_json", type=Path, help="the output of 'bench_pbr.py fit' that includes this capture")
+    ap.add_argument("--cos", type=float, default=0.3, help="grazing: |cos(theta_o)| below this")
+    ap.add_argument("--spp", type=int, help="samples per pixel of each render (default: the fit's eval_spp)")
+    ap.add_argument("--out", default="bench_grazing.json")
+    args = ap.parse_args(argv)
+    capture, mesh, material, _ = synthetic_fit_inputs(args.capture)
+    fabric = capture.metadata.get("fabric", args.capture.name)
+    fits = [r for r in json.loads(args.fit_json.read_text()) if r["preset"] == f"fit-{fabric}"]
+    if not fits:
+        raise SystemExit(f"{args.fit_json} has no fit of fabric '{fabric}'")
+    settings = MaterialFitSettings(**{k: v for k, v in fits[0]["settings"].items() if k != "brdf"})
+    spp = args.spp or settings.eval_spp
+    # seed 0 is the selection's render; 7919 an independent one (passes are seeded seed + pass index)
+    renderers = [fit_renderer(seed) for seed in (0, 7919)]
+    garment, occluder = split_occluders(mesh, tuple(capture.garment_label_ids))
+    train, held = holdout_split(len(capture.views), settings.holdout_every)
+    masks: dict[str, list[tuple[Any, dict[str, np.ndarray]]]] = {}
+    for split, ids in (("held-out", held), ("training", train)):
+        masks[split] = []
+        for v in prepare_views(capture, settings.max_image_side, ids):
+            cos = view_cosines(garment, v.camera, occluder)
+            graze = (v.weight > 0) & (cos < args.cos)
+            masks[split].append((v, {"grazing": graze.astype(np.float32),
+                                     "rest": ((v.weight > 0) & ~graze).astype(np.float32), "all": v.weight}))
+    records = []
+    print(f"{fabric}: {settings.max_image_side} px, {spp} spp, grazing = interior pixels with |cos(theta_o)| "
+          f"< {args.cos}; PSNR dB plain / decorrelated")
+    print("model       views     pixels grazing/all   grazing        rest           all            "
+          "mean residual grazing (RGB)")
+    for fit in fits:
+        model = fit["settings"]["brdf"]
+        mat = Material(model, fit["params"], material.base_color)
+        light = Light(np.asarray(fit["radiance"]))
+        for split, views in masks.items():
+            sq = {k: 0.0 for k in ("grazing", "rest", "all")}
+            dec, n = dict.fromkeys(sq, 0.0), dict.fromkeys(sq, 0.0)
+            resid = np.zeros(3)
+            for v, ms in views:
+                a, b = (r.render(garment, mat, light, v.camera, spp=spp, occluder=occluder,
+                                 max_depth=settings.max_depth).color - v.target for r in renderers)
+                for k, w in ms.items():
+                    sq[k] += masked_mse(a, 0.0, w) * float(w.sum())
+                    dec[k] += float(np.sum(w[..., None] * a * b)) / 3.0
+                    n[k] += float(w.sum())
+                resid += ((a + b) / 2 * ms["grazing"][..., None]).reshape(-1, 3).sum(axis=0)
+            psnr = {k: psnr_from_mse(sq[k] / max(n[k], 1.0)) for k in sq}
+            psnr_dec = {k: psnr_from_mse(dec[k] / max(n[k], 1.0)) for k in sq}
+            resid /= max(n["grazing"], 1.0)
+            records.append({"role": "pbr_renderer", "implementation": "mitsuba", "preset": f"grazing-{fabric}",
+                            "settings": {"brdf": model, "views": split, "cos": args.cos, "render_spp": spp,
+                                         **settings.model_dump()},
+                            "errors": {**{f"psnr_{k}": v for k, v in psnr.items()},
+                                       **{f"psnr_decorrelated_{k}": v for k, v in psnr_dec.items()}},
+                            "pixels": n, "mean_residual_grazing": resid.tolist(), "params": fit["params"],
+                            "radiance": fit["radiance"]})
+            print(f"{model:11s} {split:9s} {int(n['grazing']):7d}/{int(n['all']):<7d}     "
+                  + "".join(f"{psnr[k]:6.2f}/{psnr_dec[k]:6.2f}  " for k in sq) + f"{np.round(resid, 4).tolist()}",
+                  flush=True)
+    Path(args.out).write_text(json.dumps(records, indent=1) + "\n")
+    return records
+
+
 if __name__ == "__main__":
     import sys
 
     if len(sys.argv) > 1 and sys.argv[1] == "fit":
         fit_main(sys.argv[2:])
+    elif len(sys.argv) > 1 and sys.argv[1] == "grazing":
+        grazing_main(sys.argv[2:])
     else:
         main()

@@ -82,16 +82,19 @@ def main(argv: list[str] | None = None) -> int:
     train_seconds = time.perf_counter() - start - data_seconds
     args.out.parent.mkdir(parents=True, exist_ok=True)
     export_onnx(model, str(args.out), {"pgc_training": f"scripts/train_albedo.py seed={args.seed}"})
-    estimator = OnnxAlbedoEstimator({"model": str(args.out)})
+    estimator = OnnxAlbedoEstimator({"model": str(args.out)})  # with its default shading smoothing
     val = evaluate(estimator.estimate, val_data)
     train_metrics = evaluate(estimator.estimate, train_data)
+    network_only = OnnxAlbedoEstimator({"model": str(args.out), "shading_kernel": 0})
+    val_network = evaluate(network_only.estimate, val_data)
     record = {"model": args.out.name, "sha256": hashlib.sha256(args.out.read_bytes()).hexdigest(),
               "bytes": args.out.stat().st_size, "parameters": int(sum(p.numel() for p in model.parameters())),
               "settings": asdict(settings), "data": {"train": {"garment": "tshirt", "images": len(train_data)},
                                                      "validation": {"garment": "dress", "images": len(val_data)},
                                                      "resolution": args.resolution, "views": args.views,
                                                      "spp": args.spp, "data_version": DATA_VERSION},
-              "validation": val, "training": train_metrics,
+              "shading_kernel": estimator.options.shading_kernel,
+              "validation": val, "validation_network_only": val_network, "training": train_metrics,
               "seconds": {"data": round(data_seconds, 1), "train": round(train_seconds, 1)}}
     args.out.with_suffix(".json").write_text(json.dumps(record, indent=2) + "\n")
     print(json.dumps({"validation": val, "seconds": record["seconds"]}, indent=2))

@@ -118,3 +118,39 @@ def test_random_fabric_and_light_are_deterministic_and_varied():
     assert any(light.envmap is not None for light in lights) and any(light.envmap is None for light in lights)
     again = random_light(np.random.default_rng([9, 7]))
     np.testing.assert_array_equal(again.radiance, lights[7].radiance)
+
+
+def test_shading_smoothing_keeps_the_pattern_and_drops_pixel_level_errors():
+    from pgc_onnx.albedo import smooth_shading
+
+    rng = np.random.default_rng(3)
+    h, w = 64, 80
+    stripes = np.where((np.arange(h)[:, None, None] // 3) % 2 == 0, 0.7, 0.1) * np.array([1.0, 0.8, 0.6])
+    albedo = np.broadcast_to(stripes, (h, w, 3))
+    shading = (0.6 + 0.3 * np.linspace(0, 1, w))[None, :, None] * np.ones((h, 1, 3))  # smooth ramp
+    image = albedo * shading
+    # a prediction with the right shading in the mean but per-pixel multiplicative errors (+-20 %)
+    noisy = np.clip(albedo * rng.uniform(0.8, 1.2, albedo.shape), 0, 1)
+    mask = np.zeros((h, w))
+    mask[4:-4, 4:-4] = 1
+    out = smooth_shading(image, noisy, mask, 13)
+    inner = mask > 0
+    inner[:10] = inner[-10:] = False
+    err_pred = scale_invariant_error(noisy, albedo, inner.astype(float))
+    err_out = scale_invariant_error(out, albedo, inner.astype(float))
+    assert err_out < 0.35 * err_pred
+    # an exact prediction under exactly constant shading is returned unchanged
+    exact = smooth_shading(albedo * 0.5, albedo, mask, 13)
+    np.testing.assert_allclose(exact[inner], albedo[inner], atol=1e-9)
+
+
+def test_shading_smoothing_is_finite_where_albedo_image_or_mask_vanish():
+    from pgc_onnx.albedo import smooth_shading
+
+    img = np.zeros((20, 20, 3))
+    img[5:15, 5:15] = 0.4
+    pred = np.zeros_like(img)
+    pred[8:12] = 0.5
+    for mask in (None, np.zeros((20, 20)), np.ones((20, 20))):
+        out = smooth_shading(img, pred, mask, 7)
+        assert np.all(np.isfinite(out)) and out.min() >= 0 and out.max() <= 1

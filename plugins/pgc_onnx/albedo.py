@@ -82,6 +82,8 @@ class OnnxAlbedoEstimator(AlbedoEstimator):
         out = self._run_tiled(np.nan_to_num(x).astype(np.float32))
         out = np.clip(out, 0.0, 1.0)
         out = srgb_to_linear(out) if self.output_space == "srgb" else out
+        if self.options.shading_kernel:
+            out = smooth_shading(np.nan_to_num(np.clip(image, 0.0, 1.0)), out, mask, self.options.shading_kernel)
         return out.astype(np.float32)
 
     def run_whole(self, x: np.ndarray) -> np.ndarray:
@@ -111,6 +113,24 @@ class OnnxAlbedoEstimator(AlbedoEstimator):
                 acc[y0:y0 + t, x0:x0 + t] += pred * weight[..., None]
                 wsum[y0:y0 + t, x0:x0 + t] += weight
         return (acc / np.maximum(wsum, 1e-12)[..., None]).astype(np.float32)
+
+
+def smooth_shading(image: np.ndarray, albedo: np.ndarray, mask: np.ndarray | None, kernel_size: int,
+                   floor: float = 1e-3) -> np.ndarray:
+    """Albedo = image / low-pass(image / albedo): the implied shading (linear, per channel) is blurred with the
+    mask-aware Gaussian (weights = ``mask`` where the albedo exceeds ``floor``), so only its low frequencies
+    come from the network. Where the albedo or the smoothed shading vanish the result stays finite (clipped
+    to [0, 1])."""
+    from pgc.filtering.kernel import odd_size
+    from pgc.filtering.reference import lowpass_separable
+
+    albedo = np.asarray(albedo, np.float64)
+    trusted = albedo.mean(axis=-1) > floor
+    weight = trusted if mask is None else trusted & (np.asarray(mask) > 0.5)
+    shading = np.where(trusted[..., None], image / np.maximum(albedo, floor), 0.0)
+    smooth = lowpass_separable(shading, weight.astype(np.float32), odd_size(kernel_size))
+    out = np.where(weight[..., None], image / np.maximum(smooth, floor), albedo)
+    return np.clip(np.nan_to_num(out, nan=0.0, posinf=1.0), 0.0, 1.0)
 
 
 def _starts(n: int, tile: int, step: int) -> list[int]:

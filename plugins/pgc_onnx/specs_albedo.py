@@ -16,6 +16,12 @@ class OnnxAlbedoOptions(Options):
     """Overlap between tiles in pixels; None takes the model's metadata (pgc_overlap) or 32."""
     threads: int = 2
     """onnxruntime intra-op threads."""
+    shading_kernel: int = 13
+    """Retinex prior on the prediction: the shading it implies (image / albedo) is low-passed with the
+    mask-aware Gaussian of the filter role (odd size in px, sigma = size / 6) and the albedo re-derived as
+    image / smoothed shading, so the image's own high frequencies (pattern edges) are kept and the network's
+    pixel-level errors dropped; 0 = the raw prediction. 13 px (sigma 2 px at the 256 px training size) was
+    chosen on the training garment (docs/albedo.md)."""
 
 
 SPECS = [

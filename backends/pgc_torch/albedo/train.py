@@ -85,11 +85,12 @@ def train(data: AlbedoData, settings: TrainSettings, reporter: Reporter | None =
 
 
 def evaluate(predict, data: AlbedoData) -> dict[str, float]:
-    """Scale-invariant albedo error on the garment of the network and of the raw image used as albedo."""
+    """Scale-invariant albedo error on the garment of the network and of the raw image used as albedo.
+    ``predict(image, mask)`` gets the garment mask, as the texture stage passes it."""
     net, raw = [], []
     for i in range(len(data)):
-        pred = predict(data.images[i])
         weight = (data.garment[i] > 0.5).astype(np.float64)
+        pred = predict(data.images[i], weight)
         net.append(scale_invariant_error(pred, data.albedo[i], weight))
         raw.append(scale_invariant_error(data.images[i], data.albedo[i], weight))
     return {"albedo_error": float(np.mean(net)), "albedo_error_std": float(np.std(net)),
