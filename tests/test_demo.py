@@ -18,6 +18,13 @@ def test_tiny_demo_runs_end_to_end_and_reports_every_variant(tmp_path):
             assert np.isfinite(metrics[variant][name]), (variant, name)
     assert set(metrics["motions"]) == {"goalpost", "spooky", "arms-up"}
     assert (out / "report.html").is_file() and any((out / "report").glob("*.png"))
+    # the hybrid takes the far field's outline (silhouette = "far"); with the mesh as far field, the mesh's
+    render = out / "runs" / "goalpost" / "render"
+    meta = json.loads((render / "render.json").read_text())
+    frame = np.load(render / f"frame_{meta['frames'][-1]:04d}.npz")
+    if meta["far_source"] == "mesh":
+        np.testing.assert_array_equal(frame["hybrid_alpha"], frame["pbr_alpha"])
+    assert np.all(frame["hybrid"][frame["hybrid_alpha"] == 0] == 0)  # over black outside the outline
     # the asset is complete and a rerun resumes from the cache (nothing recomputed)
     assert (out / "asset" / "manifest.json").is_file()
     stamp = {p: p.stat().st_mtime for p in (out / "asset" / "stages").rglob("stage.json")}

@@ -54,6 +54,43 @@ def test_error_decomposition_holds(filt):
     np.testing.assert_allclose(lhs, rhs, atol=1e-5)
 
 
+@pytest.mark.parametrize("filt", filters(), ids=lambda f: type(f).__name__)
+def test_far_silhouette_takes_the_far_fields_shape_and_fades_the_detail_with_the_near_alpha(filt):
+    rng = np.random.default_rng(2)
+    h, w = 24, 32
+    far_alpha = np.zeros((h, w), np.float32)
+    far_alpha[4:20, 6:26] = 1.0  # the mesh's coverage: a rectangle
+    near_alpha = np.zeros((h, w), np.float32)
+    near_alpha[2:22, 4:18] = 1.0  # the splats: wider on the left, missing on the right
+    far = RenderOutput((rng.uniform(0, 1, (h, w, 3)) * far_alpha[..., None]).astype(np.float32), far_alpha)
+    near = RenderOutput((rng.uniform(0, 1, (h, w, 3)) * near_alpha[..., None]).astype(np.float32), near_alpha)
+    background = np.array([0.1, 0.7, 0.3], np.float32)
+    frame = compose(near, far, filt, 7, background=background, silhouette="far")
+    np.testing.assert_array_equal(frame.hybrid_alpha, far_alpha)
+    np.testing.assert_array_equal(frame.alpha, near_alpha)
+    outside = far_alpha == 0  # background there, even where the splats cover
+    np.testing.assert_allclose(frame.hybrid[outside], np.broadcast_to(background, frame.hybrid[outside].shape))
+    only_far = (far_alpha == 1) & (near_alpha == 0)  # no near-field detail where the splats do not cover
+    np.testing.assert_allclose(frame.hybrid[only_far], np.clip(frame.low_far[only_far], 0, None), atol=1e-6)
+    both = (far_alpha == 1) & (near_alpha == 1)
+    np.testing.assert_allclose(frame.hybrid[both], np.clip(frame.low_far + frame.high_near, 0, None)[both],
+                               atol=1e-6)
+    near_shape = compose(near, far, filt, 7, background=background, silhouette="near")
+    np.testing.assert_array_equal(near_shape.hybrid_alpha, near_alpha)
+    np.testing.assert_allclose(near_shape.hybrid[both], frame.hybrid[both], atol=1e-6)
+    with pytest.raises(ValueError, match="silhouette"):
+        compose(near, far, filt, 7, silhouette="mesh")
+
+
+def test_eval_reads_each_variants_own_alpha_and_older_runs_still_evaluate():
+    from pgc.pipeline.evaluate import layer_alpha
+
+    frame = {"alpha": 0, "pbr_alpha": 0, "hybrid_alpha": 0}
+    assert [layer_alpha(k, frame) for k in ("hybrid", "near", "pbr")] == ["hybrid_alpha", "alpha", "pbr_alpha"]
+    older = {"alpha": 0, "pbr_alpha": 0}  # rendered when the hybrid always took the near field's alpha
+    assert layer_alpha("hybrid", older) == "alpha"
+
+
 def test_gaussian_uvs_of_centred_gaussians_are_the_face_centroid_uvs():
     mesh = quad()
     g = sample_on_mesh(mesh, 50, np.random.default_rng(0), sh_degree=0)

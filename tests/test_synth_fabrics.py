@@ -74,6 +74,34 @@ def test_dome_cameras_look_at_the_subject():
     assert heights.min() < 0.85 < heights.max()  # rings below and above the subject's centre
 
 
+def test_garment_framing_zooms_onto_the_garment_and_keeps_it_in_every_view():
+    from pgc.synth.generate import framing_sphere
+
+    rng = np.random.default_rng(0)
+    height = 1.7
+    garment = rng.uniform([-0.35, 0.8, -0.15], [0.35, 1.5, 0.15], (500, 3))  # a torso-sized cloud
+    spans = {}
+    for framing in ("body", "garment"):
+        center, radius = framing_sphere(framing, height, garment)
+        cams = rig.dome_cameras(16, 128, 128, center=center, distance=1.55 * height, subject_radius=radius)
+        spans[framing] = []
+        for c in cams:
+            uv, z = c.project(garment)
+            assert np.all(z > 0) and np.all((uv > 0) & (uv < 128))  # every vertex in every view
+            spans[framing].append(np.ptp(uv, axis=0).max() / 128)
+    ratio = np.array(spans["garment"]) / np.array(spans["body"])
+    assert np.all(ratio > 1.4)  # the same cameras, zoomed (1.5-1.7x for this box; 1.85x for the t-shirt)
+    assert min(spans["garment"]) > 0.6
+
+
+def test_unknown_framing_is_a_clear_error():
+    from pgc.errors import PGCDataError
+    from pgc.synth.generate import framing_sphere
+
+    with pytest.raises(PGCDataError, match="framing 'face'.*'body' or 'garment'"):
+        framing_sphere("face", 1.7, np.zeros((3, 3)))
+
+
 def test_relighting_envmaps():
     for kind in ("sky", "studio"):
         env = rig.relight_envmap(16, kind)

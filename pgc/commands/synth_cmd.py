@@ -9,7 +9,8 @@ import json
 from pgc.errors import PGCDataError
 
 USAGE = """\
-pgc synth OUT [--preset tiny|default|large] [--garment tshirt|dress] [--fabric NAME] [--seed N]
+pgc synth OUT [--preset tiny|default|large] [--garment tshirt|dress] [--fabric NAME] [--framing body|garment]
+          [--seed N]
 pgc synth render-frames CAPTURE GARMENT_NPZ BODY_NPZ OUT_DIR [--spp N]"""
 
 EPILOG = """\
@@ -37,8 +38,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("paths", nargs="+", metavar="OUT", help="output folder (or 'render-frames' and its paths)")
     p.add_argument("--preset", default="default", help="tiny, default or large (default: default)")
-    p.add_argument("--garment", default="tshirt", help="tshirt or dress (default: tshirt)")
-    p.add_argument("--fabric", default="cotton", help="cotton, fleece, knit, satin-like, lambertian")
+    p.add_argument("--garment", default=None, help="tshirt or dress (default: the preset's)")
+    p.add_argument("--fabric", default=None, help="cotton, fleece, knit, satin-like, lambertian (default: the "
+                                                  "preset's)")
+    p.add_argument("--framing", default=None, choices=("body", "garment"),
+                   help="what the cameras frame: the whole body or the garment (default: the preset's)")
     p.add_argument("--seed", type=int, default=0, help="random seed; the same seed gives identical files")
     p.add_argument("--looseness", type=float, default=0.03, help="garment clearance from the body, metres")
     p.add_argument("--views", type=int, default=None, help="override the preset's number of cameras")
@@ -62,7 +66,8 @@ def run(args: argparse.Namespace) -> int:
         raise PGCDataError(f"expected one output folder, got {args.paths}; usage:\n{USAGE}")
     from pgc.synth.generate import generate, get_preset
 
-    preset = get_preset(args.preset, views=args.views, resolution=args.resolution, spp=args.spp)
+    preset = get_preset(args.preset, views=args.views, resolution=args.resolution, spp=args.spp,
+                        framing=args.framing)
     capture = generate(args.paths[0], preset, garment=args.garment, fabric=args.fabric, seed=args.seed,
                        looseness=args.looseness, reporter=reporter)
     summary = {"out": capture.root, "views": len(capture.views), "resolution": preset.resolution,

@@ -12,7 +12,11 @@
   (:func:`hide_behind`);
 - ``l``: the alpha-aware low-pass of the filter role, ``h = 1 - l``.
 Compositing is done on un-premultiplied colours (render colour / alpha) so the alpha-aware blur sees the
-garment's own colour; the result is re-composited over the background with the near-field alpha.
+garment's own colour; the result is re-composited over the background with the alpha of the layer that
+gives the garment its shape (``silhouette``): ``'near'``, the Gaussians' alpha (the paper, where ``S_t`` is the
+same Gaussians and both alphas agree), or ``'far'``, the far field's alpha, with the detail ``h(G)`` weighted
+by the near field's alpha (``l(S) + alpha_G h(G)``, so it fades out where the Gaussians do not cover). With
+the mesh as far field, ``'far'`` is the simulated mesh's own coverage (docs/pipeline.md measures both).
 """
 
 from __future__ import annotations
@@ -131,19 +135,25 @@ class HybridFrame:
     """(H, W, 3) h(G), un-premultiplied (signed)."""
     alpha: np.ndarray
     """(H, W) alpha of G."""
+    hybrid_alpha: np.ndarray
+    """(H, W) alpha the hybrid is composited with (G's or S's, see ``silhouette``)."""
 
 
 def compose(near: RenderOutput, far: RenderOutput, filt: Filter, kernel_size: int,
-            background: np.ndarray | None = None) -> HybridFrame:
-    """Combine the near-field and far-field renders of one view (both rendered over black)."""
+            background: np.ndarray | None = None, silhouette: str = "near") -> HybridFrame:
+    """Combine the near-field and far-field renders of one view (both rendered over black); ``silhouette``
+    ('near' or 'far'): whose alpha shapes the hybrid (module docstring)."""
+    if silhouette not in ("near", "far"):
+        raise ValueError(f"compose: silhouette must be 'near' or 'far', not {silhouette!r}")
     g, s = unpremultiply(near), unpremultiply(far)
     high = filt.highpass(g, near.alpha, kernel_size)
     low = filt.lowpass(s, far.alpha, kernel_size)
-    colour = np.clip(high + low, 0.0, None)
-    a = near.alpha[..., None]
+    a, fa = near.alpha[..., None], far.alpha[..., None]
+    colour = np.clip(low + (high if silhouette == "near" else a * high), 0.0, None)
+    shape = a if silhouette == "near" else fa
     bg = np.zeros_like(colour) if background is None else np.broadcast_to(background, colour.shape)
 
     def over(c: np.ndarray, alpha: np.ndarray) -> np.ndarray:
         return (alpha * c + (1 - alpha) * bg).astype(np.float32)
 
-    return HybridFrame(over(colour, a), over(g, a), over(s, far.alpha[..., None]), low, high, near.alpha)
+    return HybridFrame(over(colour, shape), over(g, a), over(s, fa), low, high, near.alpha, shape[..., 0])

@@ -95,7 +95,7 @@ def evaluate_run(run_dir: str | Path, gt: str | Path, cfg: RunConfig, reporter: 
                 raise PGCDataError(f"frame {t}: ground truth {target.shape} and render {pred['hybrid'].shape} "
                                    "differ in size; render and ground truth must use the same cameras")
             for key, layer in VARIANTS.items():
-                alpha = pred["pbr_alpha"] if layer == "pbr" else pred["alpha"]
+                alpha = pred[layer_alpha(layer, pred)]
                 row = {"frame": t}
                 for name, metric in metrics.items():
                     vals = [metric(pred[layer][c], target[c], _region(coverage[c], alpha[c]))
@@ -110,6 +110,16 @@ def evaluate_run(run_dir: str | Path, gt: str | Path, cfg: RunConfig, reporter: 
         result[key]["per_frame"] = rows
     write_json(Path(out) if out else run_dir / "metrics.json", result)
     return result
+
+
+def layer_alpha(layer: str, frame) -> str:
+    """The key of the alpha that shapes ``layer`` in a rendered frame (``hybrid_alpha`` is absent in runs
+    rendered before the hybrid could take the far field's silhouette: there it was the near field's)."""
+    if layer == "pbr":
+        return "pbr_alpha"
+    if layer == "hybrid" and "hybrid_alpha" in frame:
+        return "hybrid_alpha"
+    return "alpha"
 
 
 def _region(coverage: np.ndarray, alpha: np.ndarray) -> np.ndarray:

@@ -86,9 +86,10 @@ class HybridRenderer:
     def frame(self, vertices: np.ndarray, camera: Camera, kernel_size: int,
               occluder: Mesh | None = None) -> dict[str, np.ndarray]:
         lay = self.layers(vertices, camera, occluder)
-        h = compose(lay["near"], lay["far"], self.filter, kernel_size)
+        h = compose(lay["near"], lay["far"], self.filter, kernel_size, silhouette=self.settings.silhouette)
         return {"hybrid": h.hybrid, "near": h.near, "far": h.far, "pbr": lay["pbr"].color,
-                "alpha": h.alpha, "pbr_alpha": lay["pbr"].alpha, "low_far": h.low_far, "high_near": h.high_near}
+                "alpha": h.alpha, "hybrid_alpha": h.hybrid_alpha, "pbr_alpha": lay["pbr"].alpha,
+                "low_far": h.low_far, "high_near": h.high_near}
 
 
 def kernel_views(asset: GarmentAsset, capture, count: int) -> list:

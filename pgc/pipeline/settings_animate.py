@@ -25,6 +25,10 @@ class RenderSettings(Options):
     far_lookup: str = Field("visible", pattern="^(visible|parent)$", description=(
         "where a Gaussian reads the far-field texture: 'parent' = its parent triangle (the paper), 'visible' = "
         "the garment surface seen through its centre (see pgc.pipeline.compose)"))
+    silhouette: str = Field("far", pattern="^(near|far)$", description=(
+        "whose alpha shapes the hybrid: 'near' = the Gaussians' (the paper; with far_source 'splats' both agree), "
+        "'far' = the far field's, the simulated mesh's own coverage when the far field is the mesh, with h(G) "
+        "weighted by the Gaussians' alpha"))
     body_occludes: bool = Field(True, description="the body hides the garment layers where it is in front")
 
 

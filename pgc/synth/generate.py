@@ -42,6 +42,13 @@ class SynthPreset:
     sampler: str = "ldsampler"
     """Mitsuba sampler: the low-discrepancy sampler halves the noise of 'independent' at equal spp
     (benchmarks/bench_synth.py); its spp must be a power of 4."""
+    garment: str = "tshirt"
+    """Garment kind (:data:`pgc.synth.garments` names: tshirt, dress)."""
+    fabric: str = "cotton"
+    """Fabric preset (:data:`pgc.synth.fabrics.FABRICS`)."""
+    framing: str = "body"
+    """'body': the whole body fills the views; 'garment': the same dome cameras zoom onto the garment (its
+    bounding sphere times ``GARMENT_FRAME_MARGIN``, room for the motions), so its fabric takes the pixels."""
 
 
 PRESETS: dict[str, SynthPreset] = {
@@ -60,12 +67,29 @@ def get_preset(name: str, **overrides) -> SynthPreset:
     return replace(PRESETS[name], **{k: v for k, v in overrides.items() if v is not None})
 
 
-def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garment: str = "tshirt",
-             fabric: str = "cotton", seed: int = 0, looseness: float = 0.03,
+GARMENT_FRAME_MARGIN = 1.15
+"""Garment framing: the bounding sphere's radius times this (sleeves and hem move in the test motions)."""
+
+
+def framing_sphere(framing: str, height: float, garment_vertices: np.ndarray) -> tuple[np.ndarray, float]:
+    """The sphere (centre, radius; metres) the dome cameras frame: the body (``height`` tall, feet at y = 0)
+    or the garment's bounding box centre with its farthest vertex."""
+    if framing == "body":
+        return np.array([0.0, 0.5 * height, 0.0]), 0.52 * height
+    if framing == "garment":
+        v = np.asarray(garment_vertices, np.float64)
+        center = 0.5 * (v.min(axis=0) + v.max(axis=0))
+        return center, GARMENT_FRAME_MARGIN * float(np.linalg.norm(v - center, axis=1).max())
+    raise PGCDataError(f"synth preset: unknown framing '{framing}'; use 'body' or 'garment'")
+
+
+def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garment: str | None = None,
+             fabric: str | None = None, seed: int = 0, looseness: float = 0.03,
              reporter: Reporter | None = None) -> Capture:
     """Generate a synthetic capture into ``out`` and return it (as written).
 
-    The same arguments give byte-identical files. ``preset``: a name of :data:`PRESETS` or a SynthPreset.
+    The same arguments give byte-identical files. ``preset``: a name of :data:`PRESETS` or a SynthPreset;
+    ``garment`` and ``fabric`` override the preset's.
     """
     from pgc.io.capture import write_capture
     from pgc.synth import fabrics, garments, rig
@@ -78,6 +102,8 @@ def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garm
     p = get_preset(preset) if isinstance(preset, str) else preset
     if p.sampler == "ldsampler":  # it takes powers of 4 only: round up rather than let Mitsuba warn
         p = replace(p, spp=int(4 ** np.ceil(np.log(max(p.spp, 1)) / np.log(4) - 1e-9)))
+    p = replace(p, garment=garment or p.garment, fabric=fabric or p.fabric)
+    garment, fabric = p.garment, p.fabric
     fab = fabrics.get_fabric(fabric)
     reporter = reporter or Reporter.silent()
     out = Path(out)
@@ -92,9 +118,9 @@ def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garm
         st.record(fibres=0 if fibres is None else len(fibres.face))
 
     light = rig.capture_light()
-    height = body.shape.height
-    cameras = rig.dome_cameras(p.views, p.resolution, p.resolution, center=(0.0, 0.5 * height, 0.0),
-                               distance=1.55 * height, subject_radius=0.52 * height, seed=seed)
+    center, radius = framing_sphere(p.framing, body.shape.height, cloth.vertices)
+    cameras = rig.dome_cameras(p.views, p.resolution, p.resolution, center=center,
+                               distance=1.55 * body.shape.height, subject_radius=radius, seed=seed)
     gt = GroundTruth(body.mesh(), cloth, material, light, normal_map, fibres)
     geometry = gt.geometry()
     scene, labels = build_scene(geometry, light)
