@@ -146,3 +146,24 @@ def test_auto_far_field_is_the_one_with_the_lower_kernel_view_error(far_source):
     else:
         assert set(errors) == {"splats"} and chosen["far_source"] == "splats"
     assert renderer.far_source == chosen["far_source"] and chosen["kernel_size"] % 2 == 1
+
+
+def test_kernel_rule_compares_the_capture_with_the_capture_light_when_the_run_is_relit():
+    """The rule scores renders against the capture images, so it must light them as the capture was lit."""
+    pytest.importorskip("torch")
+    pytest.importorskip("open3d")
+    from pgc.config import resolve
+    from pgc.pipeline.render import choose_kernel
+    from pgc.types import Capture, Light, View
+
+    renderer = _hybrid_renderer("auto")
+    shaded = renderer.pbr.render(renderer.asset.garment, renderer.asset.material, renderer.asset.light, CAMERA)
+    seg = np.where(shaded.alpha > 0.5, 2, 0).astype(np.uint8)
+    capture = Capture([View(CAMERA, shaded.color, segmentation=seg)], labels={0: "background", 1: "body", 2: "tshirt"})
+    cfg = resolve({"stages": {"render": {"far_source": "auto", "kernel_views": 1}}})
+    plain = choose_kernel(renderer, capture, cfg)
+    relit = Light(np.array([0.2, 0.3, 2.5]))
+    renderer.light = relit
+    chosen = choose_kernel(renderer, capture, cfg)
+    assert renderer.light is relit  # the run's light is back for its frames
+    assert chosen == plain

@@ -101,8 +101,17 @@ def kernel_views(asset: GarmentAsset, capture, count: int) -> list:
 
 
 def choose_kernel(renderer: HybridRenderer, capture, cfg: RunConfig) -> dict[str, Any]:
-    """Apply the configured kernel rule to the training frame (capture pose) on the kernel views; with
-    ``far_source = 'auto'`` also choose the far field (and set it on ``renderer``)."""
+    """Apply the configured kernel rule to the training frame (capture pose, lit by the asset's fitted capture
+    light whatever light the run is rendered under) on the kernel views; with ``far_source = 'auto'`` also
+    choose the far field (and set it on ``renderer``)."""
+    run_light, renderer.light = renderer.light, renderer.asset.light
+    try:
+        return _choose_kernel(renderer, capture, cfg)
+    finally:
+        renderer.light = run_light
+
+
+def _choose_kernel(renderer: HybridRenderer, capture, cfg: RunConfig) -> dict[str, Any]:
     from pgc.albedo.texture_stage import garment_mask
     from pgc.filtering.auto import hybrid_error, select_kernel
 
