@@ -9,9 +9,15 @@ from pgc.cli import main
 
 
 @pytest.mark.slow
-def test_tiny_demo_runs_end_to_end_and_reports_every_variant(tmp_path):
+def test_tiny_demo_runs_end_to_end_and_reports_every_variant(tmp_path, monkeypatch):
+    from pgc.pipeline import render
+
+    calls = []
+    rule = render.choose_kernel
+    monkeypatch.setattr(render, "choose_kernel", lambda *a: calls.append(1) or rule(*a))
     out = tmp_path / "demo"
     assert main(["demo", "--preset", "tiny", "--out", str(out), "--quiet"]) == 0
+    assert len(calls) <= 1  # one asset, three motions: the kernel rule runs once per process
     metrics = json.loads((out / "metrics.json").read_text())
     for variant in ("hybrid", "3dgs_only", "pbr_only"):
         for name in ("psnr", "ssim", "fsim", "lpips"):

@@ -145,6 +145,11 @@ def _choose_kernel(renderer: HybridRenderer, capture, cfg: RunConfig) -> dict[st
             "kernel_views": [v.camera.name for v in views]}
 
 
+_KERNEL_CHOICES: dict[str, dict[str, Any]] = {}
+"""Kernel rule results of this process by content key (asset, capture, render settings, roles): the rule
+depends on none of a run's own data, so ``pgc demo`` rendering three motions of one asset runs it once."""
+
+
 def envmap_light(run_dir: str | Path, path: str | Path) -> Light:
     """An environment-map light (EXR, latitude-longitude, +Y up) scaled by the asset's fitted radiance."""
     from pgc.io.asset import read_asset
@@ -177,9 +182,17 @@ def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
                       {"radiance": renderer.light.radiance.tolist(), "rotation": renderer.light.rotation_deg,
                        "envmap": None if renderer.light.envmap is None else array_key(renderer.light.envmap)})
 
+    kernel_key = content_key("kernel", file_key(Path(meta["asset"]) / "manifest.json"),
+                             file_key(meta["capture"]),
+                             settings.model_dump(exclude={"views", "frame_stride"}),
+                             [cfg.role_key(r) for r in ("splat_renderer", "pbr_renderer", "filter")])
+
     def compute(folder: Path):
         with reporter.stage("choose_kernel") as st:
-            kernel = choose_kernel(renderer, capture, cfg)
+            if kernel_key not in _KERNEL_CHOICES:
+                _KERNEL_CHOICES[kernel_key] = choose_kernel(renderer, capture, cfg)
+            kernel = _KERNEL_CHOICES[kernel_key]
+            renderer.far_source = kernel["far_source"]
             st.record(kernel_size=kernel["kernel_size"], far_source=kernel["far_source"])
         vertices = np.load(run_dir / "garment.npz")["vertices"]
         with np.load(run_dir / "body.npz") as z:
