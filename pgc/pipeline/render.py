@@ -182,12 +182,10 @@ def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
                       {"radiance": renderer.light.radiance.tolist(), "rotation": renderer.light.rotation_deg,
                        "envmap": None if renderer.light.envmap is None else array_key(renderer.light.envmap)})
 
-    kernel_key = content_key("kernel", file_key(Path(meta["asset"]) / "manifest.json"),
-                             file_key(meta["capture"]),
-                             settings.model_dump(exclude={"views", "frame_stride"}),
-                             [cfg.role_key(r) for r in ("splat_renderer", "pbr_renderer", "filter")])
-
     def compute(folder: Path):
+        kernel_key = content_key("kernel", file_key(Path(meta["asset"]) / "manifest.json"), file_key(meta["capture"]),
+                                 settings.model_dump(exclude={"views", "frame_stride"}),
+                                 [cfg.role_key(r) for r in ("splat_renderer", "pbr_renderer", "filter")])
         with reporter.stage("choose_kernel") as st:
             if kernel_key not in _KERNEL_CHOICES:
                 _KERNEL_CHOICES[kernel_key] = choose_kernel(renderer, capture, cfg)
