@@ -1,72 +1,31 @@
-"""Build (once, cached) and load the C++/OpenMP compositing kernel ``rasterize.cpp`` through ctypes.
+"""The C++/OpenMP compositing kernel ``rasterize.cpp``, built and loaded through :mod:`pgc.native`.
 
-The library is compiled with the system C++ compiler into ``$PGC_CACHE_DIR/kernels`` (default
-``~/.cache/pgc/kernels``), keyed by a hash of the source and flags, atomically (temp file + rename).
-Build ahead of time with ``python -m pgc_torch.splat.kernel``. Plain C ABI, no torch headers: building takes
-about a second.
+Build ahead of time with ``python -m pgc_torch.splat.kernel`` (the set-up does); otherwise the first render
+builds it (about a second) into the kernel cache.
 """
 
 from __future__ import annotations
 
 import ctypes
-import hashlib
-import os
-import shutil
-import subprocess
-import tempfile
 from functools import lru_cache
 from pathlib import Path
 
+from pgc import native
+from pgc.native import KernelUnavailable
+
 SOURCE = Path(__file__).with_name("rasterize.cpp")
-FLAGS = ["-O3", "-fopenmp", "-fPIC", "-shared", "-std=c++17"]
-
-
-class KernelUnavailable(RuntimeError):
-    """The compiled kernel cannot be built or loaded (no compiler, no OpenMP, ...)."""
-
-
-def cache_dir() -> Path:
-    root = os.environ.get("PGC_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "pgc")
-    return Path(root) / "kernels"
-
-
-def library_path() -> Path:
-    digest = hashlib.sha256(SOURCE.read_bytes() + " ".join(FLAGS).encode()).hexdigest()[:16]
-    return cache_dir() / f"pgc_splat_{digest}.so"
+__all__ = ["KernelUnavailable", "available", "build", "load"]
 
 
 def build(force: bool = False) -> Path:
     """Compile the kernel if needed; returns the library path. Raises KernelUnavailable on failure."""
-    target = library_path()
-    if target.exists() and not force:
-        return target
-    compiler = os.environ.get("CXX") or shutil.which("g++") or shutil.which("c++")
-    if compiler is None:
-        raise KernelUnavailable("no C++ compiler found (install g++ or set CXX)")
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(suffix=".so", dir=target.parent)
-    os.close(fd)
-    try:
-        try:
-            res = subprocess.run([compiler, *FLAGS, str(SOURCE), "-o", tmp], capture_output=True, text=True)
-        except OSError as exc:
-            raise KernelUnavailable(f"cannot run the C++ compiler '{compiler}': {exc}") from exc
-        if res.returncode != 0:
-            raise KernelUnavailable(f"compiling {SOURCE.name} failed:\n{res.stderr[-2000:]}")
-        os.replace(tmp, target)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return target
+    return native.build(SOURCE, force=force)
 
 
 @lru_cache(maxsize=1)
 def load() -> ctypes.CDLL:
-    """The loaded kernel library (built on first use)."""
-    try:
-        lib = ctypes.CDLL(str(build()))
-    except OSError as exc:
-        raise KernelUnavailable(f"loading the splat kernel failed: {exc}") from exc
+    """The loaded kernel library (built on first use), with its argument types set."""
+    lib = native.load(SOURCE)
     p, i32, i64 = ctypes.c_void_p, ctypes.c_int, ctypes.c_int64
     for suffix in ("f32", "f64"):
         fwd = getattr(lib, f"pgc_splat_forward_{suffix}")
@@ -79,6 +38,7 @@ def load() -> ctypes.CDLL:
 
 
 def available() -> bool:
+    """Whether the kernel builds and loads here."""
     try:
         load()
     except KernelUnavailable:
