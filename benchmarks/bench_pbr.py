@@ -168,7 +168,7 @@ def fit_renderer(seed: int = 0) -> Any:
 
 def fit_main(argv: list[str]) -> list[dict[str, Any]]:
     from pgc.brdfs.select import fit_and_select
-    from pgc.pipeline.settings_material import MaterialFitSettings
+    from pgc.roles.pbr_renderer import MaterialFitSettings
 
     ap = argparse.ArgumentParser(description="material fit on synthetic captures")
     ap.add_argument("captures", nargs="+", type=Path)
@@ -224,7 +224,7 @@ def view_cosines(mesh: Any, camera: Any, occluder: Any) -> np.ndarray:
 def grazing_main(argv: list[str]) -> list[dict[str, Any]]:
     from pgc.brdfs.fitdata import masked_mse, prepare_views, split_occluders
     from pgc.brdfs.select import holdout_split
-    from pgc.pipeline.settings_material import MaterialFitSettings
+    from pgc.roles.pbr_renderer import MaterialFitSettings
 
     ap = argparse.ArgumentParser(description="held-out and training PSNR of fitted models: grazing pixels vs rest")
     ap.add_argument("capture", type=Path)

@@ -409,6 +409,8 @@ class GarmentAsset:
     material: Material
     light: Light
     """The fitted capture lighting."""
+    heldout_views: list[str] = field(default_factory=list)
+    """Names of the capture views the splat fit held out (the render stage chooses its kernel on them)."""
     config: dict[str, Any] = field(default_factory=dict)
     """The resolved run configuration that produced the asset."""
     figures: dict[str, Any] = field(default_factory=dict)

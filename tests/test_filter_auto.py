@@ -7,7 +7,7 @@ import pytest
 
 from pgc.errors import PGCDataError
 from pgc.filtering import (KernelSelection, candidate_sizes, choose_kernel_by_error, choose_kernel_by_gradient,
-                           kernel_size_for_height, select_kernel)
+                           TrainingFrame, kernel_size_for_height, select_kernel)
 from pgc.registry import default_registry
 
 H, W = 72, 96
@@ -43,7 +43,7 @@ def test_error_rule_scores_are_the_training_reconstruction_error(filt):
     alpha, shading = garment()
     image = shading + detail(6)
     pbr = shading * 1.05
-    choice = choose_kernel_by_error(filt, image, image, alpha, pbr, alpha, sizes=[9], tolerance=0.0)
+    choice = choose_kernel_by_error(filt, TrainingFrame(image, image, alpha, pbr, alpha), sizes=[9], tolerance=0.0)
     hybrid = image - filt.lowpass(image, alpha, 9) + filt.lowpass(pbr, alpha, 9)
     assert choice.size == 9 and np.isclose(choice.scores[9], np.abs(image - hybrid)[alpha > 0].mean(), rtol=1e-5)
 
@@ -58,9 +58,10 @@ def test_error_rule_follows_the_scale_of_the_detail_the_pbr_model_misses(filt):
     for period in (3, 6, 12):
         image = shading + detail(period)
         gaussians = image + 0.002 * rng.standard_normal(image.shape).astype(np.float32)
-        choice = choose_kernel_by_error(filt, image, gaussians, alpha, shading * 1.05, alpha)
+        choice = choose_kernel_by_error(filt, TrainingFrame(image, gaussians, alpha, shading * 1.05, alpha))
         assert choice.criterion == "error" and choice.size in choice.scores
-        argmin = choose_kernel_by_error(filt, image, gaussians, alpha, shading * 1.05, alpha, tolerance=0.0)
+        argmin = choose_kernel_by_error(filt, TrainingFrame(image, gaussians, alpha, shading * 1.05, alpha),
+                                        tolerance=0.0)
         assert argmin.scores[argmin.size] == min(argmin.scores.values())
         assert period <= choice.size <= 3 * period
         chosen.append(choice.size)
@@ -70,7 +71,7 @@ def test_error_rule_follows_the_scale_of_the_detail_the_pbr_model_misses(filt):
 def test_error_rule_with_a_perfect_pbr_render_picks_the_smallest_kernel(filt):
     alpha, shading = garment()
     image = shading + detail(5)
-    choice = choose_kernel_by_error(filt, image, image, alpha, image, alpha, sizes=[3, 7, 15])
+    choice = choose_kernel_by_error(filt, TrainingFrame(image, image, alpha, image, alpha), sizes=[3, 7, 15])
     assert choice.size == 3 and max(choice.scores.values()) < 1e-6
 
 
@@ -78,7 +79,8 @@ def test_gradient_rule_blurs_until_the_detail_is_gone(filt):
     alpha, shading = garment()
     chosen = []
     for period in (3, 6, 12):
-        choice = choose_kernel_by_gradient(filt, shading + detail(period), alpha, gradient_ratio=0.15)
+        image = shading + detail(period)
+        choice = choose_kernel_by_gradient(filt, TrainingFrame(image, image, alpha), gradient_ratio=0.15)
         ratios = list(choice.scores.values())
         assert ratios[-1] <= 0.15 < min(ratios[:-1], default=1.0)  # stopped at the first size under the threshold
         assert ratios == sorted(ratios, reverse=True)
@@ -89,30 +91,31 @@ def test_gradient_rule_blurs_until_the_detail_is_gone(filt):
 
 def test_gradient_rule_on_a_flat_garment_picks_the_smallest_kernel(filt):
     alpha, _ = garment()
-    choice = choose_kernel_by_gradient(filt, np.full((H, W, 3), 0.4, np.float32), alpha)
+    flat = np.full((H, W, 3), 0.4, np.float32)
+    choice = choose_kernel_by_gradient(filt, TrainingFrame(flat, flat, alpha))
     assert choice.size == 3
 
 
 def test_select_kernel_modes(filt):
     alpha, shading = garment()
     image = shading + detail(6)
-    assert select_kernel(KernelSelection(), filt, image, alpha).size == kernel_size_for_height(H)
-    assert select_kernel(KernelSelection(mode="fixed", size=21), filt, image, alpha).size == 21
-    grad = select_kernel(KernelSelection(mode="gradient"), filt, image, alpha)
-    assert grad == choose_kernel_by_gradient(filt, image, alpha)
-    err = select_kernel(KernelSelection(mode="error", sizes=[3, 9]), filt, image, alpha, image, shading, alpha)
+    assert select_kernel(KernelSelection(), filt, TrainingFrame(image, image, alpha)).size == kernel_size_for_height(H)
+    assert select_kernel(KernelSelection(mode="fixed", size=21), filt, TrainingFrame(image, image, alpha)).size == 21
+    grad = select_kernel(KernelSelection(mode="gradient"), filt, TrainingFrame(image, image, alpha))
+    assert grad == choose_kernel_by_gradient(filt, TrainingFrame(image, image, alpha))
+    err = select_kernel(KernelSelection(mode="error", sizes=[3, 9]), filt, TrainingFrame(image, image, alpha, shading, alpha))
     assert err.criterion == "error" and set(err.scores) == {3, 9}
 
 
 def test_kernel_choice_errors_are_clear(filt):
     alpha, shading = garment()
     with pytest.raises(PGCDataError, match="needs 'size'"):
-        select_kernel(KernelSelection(mode="fixed"), filt, shading, alpha)
-    with pytest.raises(PGCDataError, match="PBR render"):
-        select_kernel(KernelSelection(mode="error"), filt, shading, alpha)
+        select_kernel(KernelSelection(mode="fixed"), filt, TrainingFrame(shading, shading, alpha))
+    with pytest.raises(PGCDataError, match="far-field render"):
+        select_kernel(KernelSelection(mode="error"), filt, TrainingFrame(shading, shading, alpha))
     with pytest.raises(PGCDataError, match="mask is empty"):
-        choose_kernel_by_error(filt, shading, shading, np.zeros_like(alpha), shading, alpha)
+        choose_kernel_by_error(filt, TrainingFrame(shading, shading, np.zeros_like(alpha), shading, alpha))
     with pytest.raises(PGCDataError, match="same shape"):
-        choose_kernel_by_error(filt, shading, shading[:10], alpha, shading, alpha)
+        choose_kernel_by_error(filt, TrainingFrame(shading, shading[:10], alpha, shading, alpha))
     with pytest.raises(PGCDataError, match="kernel_size"):
-        choose_kernel_by_gradient(filt, shading, alpha, sizes=[4])
+        choose_kernel_by_gradient(filt, TrainingFrame(shading, shading, alpha), sizes=[4])

@@ -11,7 +11,7 @@ from pgc.brdfs.parameters import PARAMETERS
 from pgc.brdfs.scenes import checker_texture, folded_sheet, ring_cameras
 from pgc.brdfs.select import fit_and_select, holdout_split
 from pgc.errors import PGCDataError
-from pgc.pipeline.settings_material import MaterialFitSettings
+from pgc.roles.pbr_renderer import MaterialFitSettings
 from pgc.registry import default_registry
 from pgc.types import Capture, Light, Material, View
 

@@ -110,7 +110,7 @@ def test_the_body_in_front_empties_every_garment_layer(far_source):
     renderer = _hybrid_renderer(far_source)
     body = Mesh(np.array([[-0.3, -0.3, 0.5], [0.3, -0.3, 0.5], [0.3, 0.3, 0.5], [-0.3, 0.3, 0.5]]),
                 np.array([[0, 1, 2], [0, 2, 3]]), name="body")
-    layers = renderer.layers(renderer.asset.garment.vertices, CAMERA, body)
+    layers = renderer.layers(renderer.asset.garment.vertices, CAMERA, renderer.asset.light, far_source, body)
     covered = render_faces(body, CAMERA).face_id >= 0
     assert covered.sum() > 10
     for name in ("near", "far", "pbr"):
@@ -134,18 +134,18 @@ def test_auto_far_field_is_the_one_with_the_lower_kernel_view_error(far_source):
     from pgc.types import Capture, View
 
     renderer = _hybrid_renderer(far_source)
-    shaded = renderer.pbr.render(renderer.asset.garment, renderer.asset.material, renderer.light, CAMERA)
+    shaded = renderer.pbr.render(renderer.asset.garment, renderer.asset.material, renderer.asset.light, CAMERA)
     seg = np.where(shaded.alpha > 0.5, 2, 0).astype(np.uint8)
     capture = Capture([View(CAMERA, shaded.color, segmentation=seg)], labels={0: "background", 1: "body", 2: "tshirt"})
     cfg = resolve({"stages": {"render": {"far_source": far_source, "kernel_views": 1}}})
     chosen = choose_kernel(renderer, capture, cfg)
-    errors = chosen["far_errors"]
+    errors = chosen.far_errors
     assert all(np.isfinite(e) and e >= 0 for e in errors.values())
     if far_source == "auto":
-        assert set(errors) == {"splats", "mesh"} and chosen["far_source"] == min(errors, key=errors.get)
+        assert set(errors) == {"splats", "mesh"} and chosen.far_source == min(errors, key=errors.get)
     else:
-        assert set(errors) == {"splats"} and chosen["far_source"] == "splats"
-    assert renderer.far_source == chosen["far_source"] and chosen["kernel_size"] % 2 == 1
+        assert set(errors) == {"splats"} and chosen.far_source == "splats"
+    assert chosen.kernel_size % 2 == 1
 
 
 def test_kernel_rule_compares_the_capture_with_the_capture_light_when_the_run_is_relit():
@@ -162,8 +162,8 @@ def test_kernel_rule_compares_the_capture_with_the_capture_light_when_the_run_is
     capture = Capture([View(CAMERA, shaded.color, segmentation=seg)], labels={0: "background", 1: "body", 2: "tshirt"})
     cfg = resolve({"stages": {"render": {"far_source": "auto", "kernel_views": 1}}})
     plain = choose_kernel(renderer, capture, cfg)
-    relit = Light(np.array([0.2, 0.3, 2.5]))
-    renderer.light = relit
-    chosen = choose_kernel(renderer, capture, cfg)
-    assert renderer.light is relit  # the run's light is back for its frames
-    assert chosen == plain
+    assert choose_kernel(renderer, capture, cfg) == plain  # a value of the asset, the capture and the config
+    # the run's light is an argument of the frames only, so a relit run keeps the capture light's decision
+    frame_plain = renderer.frame(renderer.asset.garment.vertices, CAMERA, renderer.asset.light, plain)
+    frame_relit = renderer.frame(renderer.asset.garment.vertices, CAMERA, Light(np.array([0.2, 0.3, 2.5])), plain)
+    assert not np.allclose(frame_plain["pbr"], frame_relit["pbr"])

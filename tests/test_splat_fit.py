@@ -9,13 +9,13 @@ import pytest
 from pgc.errors import PGCDataError
 from pgc.events import Reporter
 from pgc.geometry.testscene import body_mesh, make_capture
-from pgc.pipeline.settings_splats import FitSplatsSettings
+from pgc.roles.splat_renderer import FitSplatsSettings
 
 torch = pytest.importorskip("torch")
 
 from pgc.splats.fitplan import crop_view, focus_on_garment, initial_count  # noqa: E402
 from pgc.splats.init import colors_from_views, sample_on_mesh  # noqa: E402
-from pgc_torch.splat.fit import heldout_psnr  # noqa: E402
+from pgc.splats.fit import heldout_psnr  # noqa: E402
 from pgc_torch.splat.renderer import TorchSplatRenderer  # noqa: E402
 
 FAST = {"iterations": 40, "gaussians_per_pixel": 0.5, "holdout_every": 4, "log_every": 10}
@@ -73,7 +73,7 @@ def test_fit_resumes_from_checkpoint_after_a_crash(scene, tmp_path):
     straight = renderer.fit(capture, mesh, dict(settings, checkpoint_dir=None)).gaussians
     with pytest.raises(KeyboardInterrupt):
         renderer.fit(capture, mesh, settings, Reporter(Recorder(stop_at=15)))
-    assert (tmp_path / "fit_splats.pt").exists()
+    assert (tmp_path / "fit_splats_torch.npz").exists()
     rec = Recorder()
     resumed = renderer.fit(capture, mesh, settings, Reporter(rec)).gaussians
     assert rec.progress[0][0] > 10  # started after the checkpoint of step 10, not from 0
@@ -90,16 +90,22 @@ def test_unlabelled_mesh_is_a_clear_error(scene):
 
 def test_heldout_psnr_of_the_ground_truth_layout_is_high(scene):
     """Sanity of the evaluation path: Gaussians that exactly reproduce an image give a high PSNR on it."""
-    from pgc_torch.splat import fit as F
+    from dataclasses import replace
+
+    from pgc.splats.fit import FitView, _Prepared
+    from pgc_torch.splat.fit import TorchFitBackend
 
     capture, mesh = scene
-    views = F._prepare(capture, 0.03)
-    model = F._Model(sample_on_mesh(mesh, 500, np.random.default_rng(0), 0), mesh)
-    with torch.no_grad():
-        model.params["opacity_logits"].fill_(-30.0)  # invisible: the render is the background
-    for v in views:
-        v.image = v.background.numpy()
-    assert heldout_psnr(TorchSplatRenderer(), model, views, 0) > 60
+    backend = TorchFitBackend(TorchSplatRenderer())
+    g = sample_on_mesh(mesh, 500, np.random.default_rng(0), 0)
+    g.opacity_logits[:] = -30.0  # invisible: the render is the background
+    backend.start(g, mesh)
+    views = []
+    for v in capture.views:
+        fv = FitView.of(v, 0.03)
+        fv = replace(fv, image=fv.background.copy())
+        views.append(_Prepared(fv, backend.prepare(fv)))
+    assert heldout_psnr(backend, views, 0) > 60
 
 
 def test_backfacing_faces_are_those_no_camera_sees_from_the_front():

@@ -29,7 +29,7 @@ from pgc.brdfs.fitdata import FitView, prepare_views, psnr_from_mse, split_occlu
 from pgc.brdfs.parameters import PARAMETERS
 from pgc.errors import PGCDataError
 from pgc.events import Reporter
-from pgc.pipeline.settings_material import MaterialFitSettings
+from pgc.roles.pbr_renderer import MaterialFitSettings
 from pgc.roles.pbr_renderer import MaterialFit
 from pgc.types import Capture, Light, Material, Mesh
 from pgc_mitsuba.runtime import mitsuba
@@ -116,7 +116,7 @@ def _optimise(renderer: Any, fit_views: list[FitView], capture: Capture, mesh: M
     window = settings.patience
     drift: float | None = None  # measured once two windows have run
     polish_from: int | None = None  # the step where the final low-lr window began
-    with reporter.stage("material_fit", total=settings.max_iterations, brdf=material.brdf) as stage:
+    with reporter.stage("material", total=settings.max_iterations, brdf=material.brdf) as stage:
         for it in range(settings.max_iterations):
             apply()
             states.append(state())

@@ -35,6 +35,26 @@ class KernelChoice:
     scores: dict[int, float] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class TrainingFrame:
+    """One view of the training frame as the kernel rules see it. Images (H, W, 3) linear RGB un-premultiplied,
+    alphas and mask (H, W) in [0, 1]; the mask (garment coverage) defaults to ``near_alpha > 0.5``."""
+
+    image: np.ndarray
+    """The captured image."""
+    near: np.ndarray
+    """The near field: the Gaussians' render G."""
+    near_alpha: np.ndarray
+    far: np.ndarray | None = None
+    """The far field S (the error rule needs it)."""
+    far_alpha: np.ndarray | None = None
+    mask: np.ndarray | None = None
+
+    def weights(self) -> np.ndarray:
+        """(H, W) float64 garment weights: the mask, or ``near_alpha > 0.5`` without one."""
+        return _mask(self.mask, self.near_alpha)
+
+
 class KernelSelection(Options):
     """How the composition stage sets the low-pass kernel (see the module docstring)."""
 
@@ -75,28 +95,26 @@ def _sizes(sizes: list[int] | None, shape: tuple[int, ...]) -> list[int]:
     return sizes
 
 
-def hybrid_error(filt: Filter, image: np.ndarray, gaussians: np.ndarray, gaussians_alpha: np.ndarray,
-                 far: np.ndarray, far_alpha: np.ndarray, mask: np.ndarray, kernel_size: int) -> float:
-    """``mean |I - (h(G) + l(S))|`` over ``mask`` (H, W) and channels: the error rule's score of one size."""
-    hybrid = filt.highpass(gaussians, gaussians_alpha, kernel_size) + filt.lowpass(far, far_alpha, kernel_size)
-    return _garment_mean(np.abs(np.asarray(image, np.float32) - hybrid), np.asarray(mask, np.float64)[..., None]
-                         ) / np.asarray(image).shape[2]
+def hybrid_error(filt: Filter, frame: TrainingFrame, kernel_size: int) -> float:
+    """``mean |I - (h(G) + l(S))|`` over the frame's garment weights and channels: the error rule's score of one
+    kernel size."""
+    image = np.asarray(frame.image, np.float32)
+    hybrid = (filt.highpass(np.asarray(frame.near, np.float32), frame.near_alpha, kernel_size)
+              + filt.lowpass(np.asarray(frame.far, np.float32), frame.far_alpha, kernel_size))
+    return _garment_mean(np.abs(image - hybrid), frame.weights()[..., None]) / image.shape[2]
 
 
-def choose_kernel_by_error(filt: Filter, image: np.ndarray, gaussians: np.ndarray, gaussians_alpha: np.ndarray,
-                           pbr: np.ndarray, pbr_alpha: np.ndarray, mask: np.ndarray | None = None,
-                           sizes: list[int] | None = None, tolerance: float = 0.1) -> KernelChoice:
-    """The smallest size whose training-frame error ``mean |I - (h(G) + l(S))|`` on ``mask`` is within
-    ``tolerance`` of the error range above the minimum. Images (H, W, 3) linear, alphas and mask (H, W);
-    the mask defaults to ``gaussians_alpha > 0.5``. Scores: mean absolute error per candidate size.
-    """
-    image, gaussians, pbr = (np.asarray(x, np.float32) for x in (image, gaussians, pbr))
-    if not image.shape == gaussians.shape == pbr.shape:
-        raise PGCDataError(f"kernel choice: image {image.shape}, 3DGS render {gaussians.shape} and PBR render "
-                           f"{pbr.shape} must have the same shape")
-    weights = _mask(mask, gaussians_alpha)
-    scores = {k: hybrid_error(filt, image, gaussians, gaussians_alpha, pbr, pbr_alpha, weights, k)
-              for k in _sizes(sizes, image.shape)}
+def choose_kernel_by_error(filt: Filter, frame: TrainingFrame, sizes: list[int] | None = None,
+                           tolerance: float = 0.1) -> KernelChoice:
+    """The smallest size whose training-frame error ``mean |I - (h(G) + l(S))|`` (:func:`hybrid_error`) is within
+    ``tolerance`` of the error range above the minimum. Scores: mean absolute error per candidate size."""
+    if frame.far is None or frame.far_alpha is None:
+        raise PGCDataError("kernel selection: mode 'error' needs the far-field render and its alpha")
+    shapes = [np.shape(x) for x in (frame.image, frame.near, frame.far)]
+    if not shapes[0] == shapes[1] == shapes[2]:
+        raise PGCDataError(f"kernel choice: image {shapes[0]}, near-field render {shapes[1]} and far-field render "
+                           f"{shapes[2]} must have the same shape")
+    scores = {k: hybrid_error(filt, frame, k) for k in _sizes(sizes, shapes[0])}
     low, high = min(scores.values()), max(scores.values())
     size = min(k for k, e in scores.items() if e <= low + tolerance * (high - low))
     return KernelChoice(size, "error", scores)
@@ -108,16 +126,16 @@ def gradient_magnitude(image: np.ndarray) -> np.ndarray:
     return np.sqrt((gx ** 2 + gy ** 2).sum(axis=-1))
 
 
-def choose_kernel_by_gradient(filt: Filter, image: np.ndarray, alpha: np.ndarray, mask: np.ndarray | None = None,
-                              sizes: list[int] | None = None, gradient_ratio: float = 0.15) -> KernelChoice:
-    """The first candidate size whose low-pass has a mean gradient magnitude on the garment interior (the mask
-    eroded by one pixel, so the silhouette does not count) at most ``gradient_ratio`` times the unblurred
-    image's; the largest candidate if none gets there. Scores: the ratio per size tried.
+def choose_kernel_by_gradient(filt: Filter, frame: TrainingFrame, sizes: list[int] | None = None,
+                              gradient_ratio: float = 0.15) -> KernelChoice:
+    """The first candidate size whose low-pass of the captured image has a mean gradient magnitude on the garment
+    interior (the weights eroded by one pixel, so the silhouette does not count) at most ``gradient_ratio`` times
+    the unblurred image's; the largest candidate if none gets there. Scores: the ratio per size tried.
     """
     from scipy.ndimage import binary_erosion
 
-    image = np.asarray(image, np.float32)
-    interior = binary_erosion(_mask(mask, alpha) > 0.5).astype(np.float64)
+    image, alpha = np.asarray(frame.image, np.float32), frame.near_alpha
+    interior = binary_erosion(frame.weights() > 0.5).astype(np.float64)
     if interior.sum() == 0:
         raise PGCDataError("kernel choice: the garment mask has no interior pixels (too thin or empty)")
     base = _garment_mean(gradient_magnitude(image), interior)
@@ -132,12 +150,9 @@ def choose_kernel_by_gradient(filt: Filter, image: np.ndarray, alpha: np.ndarray
     return KernelChoice(sizes[-1], "gradient", scores)
 
 
-def select_kernel(selection: KernelSelection, filt: Filter, image: np.ndarray, alpha: np.ndarray,
-                  gaussians: np.ndarray | None = None, pbr: np.ndarray | None = None,
-                  pbr_alpha: np.ndarray | None = None, mask: np.ndarray | None = None) -> KernelChoice:
-    """Apply ``selection`` to a training frame: ``image`` (H, W, 3) with the 3DGS ``alpha``; the error rule
-    also needs the 3DGS render ``gaussians`` and the PBR render ``pbr`` with its ``pbr_alpha``."""
-    height = np.asarray(image).shape[0]
+def select_kernel(selection: KernelSelection, filt: Filter, frame: TrainingFrame) -> KernelChoice:
+    """Apply ``selection`` to one view of the training frame."""
+    height = np.asarray(frame.image).shape[0]
     if selection.mode == "paper":
         return KernelChoice(kernel_size_for_height(height), "paper")
     if selection.mode == "fixed":
@@ -145,8 +160,5 @@ def select_kernel(selection: KernelSelection, filt: Filter, image: np.ndarray, a
             raise PGCDataError("kernel selection: mode 'fixed' needs 'size' (odd, px)")
         return KernelChoice(check_kernel_size(selection.size), "fixed")
     if selection.mode == "gradient":
-        return choose_kernel_by_gradient(filt, image, alpha, mask, selection.sizes, selection.gradient_ratio)
-    if gaussians is None or pbr is None or pbr_alpha is None:
-        raise PGCDataError("kernel selection: mode 'error' needs the 3DGS render and the PBR render with its alpha")
-    return choose_kernel_by_error(filt, image, gaussians, alpha, pbr, pbr_alpha, mask, selection.sizes,
-                                  selection.tolerance)
+        return choose_kernel_by_gradient(filt, frame, selection.sizes, selection.gradient_ratio)
+    return choose_kernel_by_error(filt, frame, selection.sizes, selection.tolerance)

@@ -78,6 +78,7 @@ def write_asset(path: str | os.PathLike, asset: GarmentAsset) -> None:
         "files": files,
         "counts": {"garment_vertices": len(asset.garment.vertices), "garment_faces": len(asset.garment.faces),
                    "gaussians": len(asset.gaussians), "sh_degree": asset.gaussians.sh_degree},
+        "heldout_views": list(asset.heldout_views),
         "config": asset.config,
         "figures": asset.figures,
     })
@@ -137,4 +138,5 @@ def read_asset(path: str | os.PathLike) -> GarmentAsset:
     envmap = imgio.read_exr(root / lt["envmap"]) if lt.get("envmap") else None
     light = Light(radiance=radiance, envmap=envmap, rotation_deg=float(lt.get("rotation_deg", 0.0)))
     return GarmentAsset(garment=garment, body=body, gaussians=gaussians, material=material, light=light,
+                        heldout_views=[str(v) for v in manifest.get("heldout_views", [])],
                         config=manifest.get("config", {}), figures=manifest.get("figures", {}))

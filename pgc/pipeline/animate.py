@@ -60,7 +60,7 @@ def animate(asset_dir: str | Path, motion_spec: str, out: str | Path, cfg: RunCo
     capture = Path(capture_dir) if capture_dir else source_capture(asset.config)
     settings = cfg.stage("animate")
     motion = resolve_motion(motion_spec, capture, settings.seconds)
-    key = content_key("simulate", file_key(asset_dir / "garment.obj"), motion_spec, settings,
+    key = content_key("animate", file_key(asset_dir / "garment.obj"), motion_spec, settings,
                       cfg.role_key("simulator"), array_key(motion.vertices))
 
     def compute(folder: Path):
@@ -68,7 +68,7 @@ def animate(asset_dir: str | Path, motion_spec: str, out: str | Path, cfg: RunCo
         save_npz(folder / "garment.npz", vertices=sim.vertices)
         return sim.vertices, sim.figures
 
-    result = StageCache(out / "stages").run("simulate", key, compute,
+    result = StageCache(out / "stages").run("animate", key, compute,
                                             lambda f: np.load(f / "garment.npz")["vertices"])
     save_npz(out / "garment.npz", vertices=result.value, faces=asset.garment.faces)
     save_npz(out / "body.npz", vertices=motion.vertices, faces=motion.faces)
@@ -76,7 +76,7 @@ def animate(asset_dir: str | Path, motion_spec: str, out: str | Path, cfg: RunCo
         "asset": str(asset_dir.resolve()), "capture": None if capture is None else str(capture.resolve()),
         "motion": motion_spec, "fps": motion.fps, "frames": motion.num_frames,
         "simulator": cfg.roles["simulator"].name,
-        "figures": StageCache(out / "stages").figures("simulate")})
+        "figures": StageCache(out / "stages").figures("animate")})
     return out
 
 

@@ -35,7 +35,7 @@ def run_demo(out: str | Path, preset: str = "default", user_config: str | Path |
     from pgc.pipeline.animate import animate
     from pgc.pipeline.evaluate import evaluate_run
     from pgc.pipeline.reconstruct import reconstruct
-    from pgc.pipeline.render import render_run
+    from pgc.pipeline.render import choose_kernel, render_run
     from pgc.pipeline.report import write_report
     from pgc.synth.generate import generate
 
@@ -58,10 +58,19 @@ def run_demo(out: str | Path, preset: str = "default", user_config: str | Path |
         marker.write_text(synth_key)
     asset = timed("reconstruct", lambda: reconstruct(capture, out / "asset", cfg, reporter))
     results: dict[str, Any] = {}
+    decisions: list = []
+
+    def decide_once(renderer, capture_views):
+        """The kernel rule depends on the asset, the capture and the config only: one decision serves every
+        motion (taken when the first render stage is computed)."""
+        if not decisions:
+            decisions.append(choose_kernel(renderer, capture_views, cfg))
+        return decisions[0]
+
     for motion in motions:
         run = out / "runs" / motion
         timed("animate", lambda: animate(out / "asset", motion, run, cfg, capture, reporter))
-        timed("render", lambda: render_run(run, cfg, reporter=reporter))
+        timed("render", lambda: render_run(run, cfg, reporter=reporter, decide=decide_once))
         results[motion] = timed("eval", lambda: evaluate_run(run, capture, cfg, reporter))
     summary = summarise(results)
     summary.update(preset=preset, seconds=timings, stages=asset.figures.get("seconds", {}),

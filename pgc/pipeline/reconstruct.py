@@ -1,7 +1,8 @@
 """``pgc reconstruct``: capture -> garment asset, every stage cached by content hash and resumable.
 
-Stages (folder ``OUT/stages/<name>``): ``mesh`` (reconstructor: labelled full-body mesh with UVs) ->
-``splats`` (mesh-embedded Gaussians fitted on the full mesh, then only the garment's kept) ->
+Stages (folder ``OUT/stages/<name>``, options ``[stages.<name>]``): ``mesh`` (reconstructor: labelled full-body
+mesh with UVs) -> ``garment`` (the garment sub-mesh with its own UV atlas) -> ``fit_splats`` (mesh-embedded
+Gaussians fitted on the full mesh, then only the garment's kept) ->
 ``base_color`` (albedo estimator + colour correction + UV merge on the garment) -> ``material``
 (BRDF parameters and the constant light, fitted by the PBR renderer) -> the asset directory ``OUT``.
 """
@@ -17,23 +18,24 @@ import numpy as np
 from pgc.config import RunConfig
 from pgc.events import Reporter
 from pgc.geometry.garment import garment_selection
+from pgc.io.atomic import write_json
 from pgc.pipeline.cache import StageCache, content_key, file_key
 from pgc.pipeline.garment import body_occluder, garment_gaussians, with_occluder
+from pgc.pipeline.settings_garment import GarmentSettings
 from pgc.pipeline.stage_io import load_gaussians, load_mesh, save_gaussians, save_mesh
 from pgc.types import GarmentAsset, Light, Material, Mesh
 
 
-def extract_garment(full: Mesh, garment_ids: list[int], settings) -> tuple[Mesh, np.ndarray]:
-    """The garment faces of ``full`` as one clean piece with its own UV atlas (xatlas, via pgc_meshlab);
-    without pgc_meshlab, the full mesh's atlas restricted to those faces."""
+def extract_garment(full: Mesh, garment_ids: list[int], settings: GarmentSettings) -> tuple[Mesh, np.ndarray]:
+    """The garment faces of ``full`` as one clean piece with its own UV atlas (xatlas); without pymeshlab and
+    xatlas, the full mesh's atlas restricted to those faces."""
     from pgc.registry import module_available
 
-    if module_available("pgc_meshlab") and module_available("xatlas"):
-        from pgc_meshlab.finish import extract_garment as extract
+    if module_available("pymeshlab") and module_available("xatlas"):
+        from pgc.geometry.finish import extract_garment as extract
 
-        return extract(full, garment_ids, settings.garment_min_island_faces, settings.garment_uv_resolution,
-                       settings.garment_uv_padding)
-    sel = garment_selection(full, garment_ids, settings.garment_min_island_faces)
+        return extract(full, garment_ids, settings.min_island_faces, settings.uv_resolution, settings.uv_padding)
+    sel = garment_selection(full, garment_ids, settings.min_island_faces)
     return full.submesh(sel, name="garment")[0], sel
 
 
@@ -67,11 +69,11 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
     full = timed("mesh", lambda: cache.run("mesh", mesh_key, compute_mesh,
                                            lambda f: load_mesh(f / "mesh.npz")))
     # 2. the garment sub-mesh with its own UV atlas (the simulator's rest shape and the texture's domain)
-    mesh_settings = cfg.stage("mesh")
-    garment_key = content_key("garment", mesh_key, mesh_settings, capture.garment_label_ids)
+    garment_settings = cfg.stage("garment")
+    garment_key = content_key("garment", mesh_key, garment_settings, capture.garment_label_ids)
 
     def compute_garment(folder: Path):
-        garment, sel = extract_garment(full.value, capture.garment_label_ids, mesh_settings)
+        garment, sel = extract_garment(full.value, capture.garment_label_ids, garment_settings)
         save_mesh(folder / "garment.npz", garment)
         np.save(folder / "selection.npy", sel)
         return (garment, sel), {"garment_vertices": len(garment.vertices), "garment_faces": len(garment.faces)}
@@ -81,20 +83,24 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
 
     garment, sel = timed("garment", lambda: cache.run("garment", garment_key, compute_garment, load_garment)).value
 
-    # 2. splats
+    # 3. the splat fit
     splat_settings = cfg.stage("fit_splats")
-    splat_key = content_key("splats", mesh_key, cfg.role_key("splat_renderer"), splat_settings)
+    splat_key = content_key("fit_splats", mesh_key, cfg.role_key("splat_renderer"), splat_settings)
 
     def compute_splats(folder: Path):
         fit = cfg.create("splat_renderer").fit(capture, full.value, splat_settings, reporter)
         save_gaussians(folder / "gaussians_full.npz", fit.gaussians)
-        return fit.gaussians, fit.figures
+        write_json(folder / "heldout_views.json", fit.heldout_views)
+        return (fit.gaussians, fit.heldout_views), fit.figures
 
-    splats = timed("splats", lambda: cache.run("splats", splat_key, compute_splats,
-                                               lambda f: load_gaussians(f / "gaussians_full.npz")))
-    gaussians = garment_gaussians(splats.value, sel)
+    def load_splats(folder: Path):
+        return load_gaussians(folder / "gaussians_full.npz"), json.loads((folder / "heldout_views.json").read_text())
 
-    # 3. base colour
+    full_gaussians, heldout_views = timed("fit_splats", lambda: cache.run("fit_splats", splat_key, compute_splats,
+                                                                          load_splats)).value
+    gaussians = garment_gaussians(full_gaussians, sel)
+
+    # 4. base colour
     tex_settings = cfg.stage("base_color")
     estimator = cfg.create("albedo_estimator")
     from pgc.albedo.texture_stage import STAGE_VERSION
@@ -114,7 +120,7 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
     texture = timed("base_color", lambda: cache.run("base_color", tex_key, compute_texture,
                                                     lambda f: np.load(f / "base_color.npy")))
 
-    # 4. material and light
+    # 5. material and light
     mat_settings = cfg.stage("material")
     mat_key = content_key("material", tex_key, cfg.role_key("pbr_renderer"), cfg.role_key("brdf"), mat_settings)
 
@@ -137,10 +143,11 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
     mat, light = material.value
     mat.base_color = texture.value
 
-    figures = {name: cache.figures(name) for name in ("mesh", "garment", "splats", "base_color", "material")}
+    figures = {name: cache.figures(name) for name in ("mesh", "garment", "fit_splats", "base_color", "material")}
     figures["seconds"] = timings
     figures["gaussians_garment"] = len(gaussians)
     asset = GarmentAsset(garment=garment, body=full.value, gaussians=gaussians, material=mat, light=light,
+                         heldout_views=heldout_views,
                          config=dict(cfg.to_dict(), source={"capture": str(Path(capture_dir).resolve())}),
                          figures=figures)
     write_asset(out, asset)

@@ -1,17 +1,19 @@
-"""``pgc render``: hybrid rendering of an animated run (METHOD.md section 5), with its ablations.
+"""``pgc render``: hybrid rendering of an animated run (docs/method.md, "Hybrid rendering"), with its ablations.
 
 Per rendered frame and camera: the near field ``G_t`` (the optimised Gaussians on the simulated garment),
 the far field ``S_t`` (the Gaussians coloured by the PBR renderer's texture-space radiance ``T_t``), the
 hybrid ``h(G_t) + l(S_t)``, and the PBR-only ablation (the mesh rendered by the PBR renderer). The low-pass
-kernel is chosen once on the training frame (the capture pose) by the configured rule.
+kernel (and, with ``far_source = 'auto'``, the far field) is chosen once per asset on the training frame (the
+capture pose) by the configured rule: :func:`choose_kernel` returns a :class:`KernelDecision` that the frames
+are rendered with; nothing is set on shared objects.
 Output: ``RUN/render/frame_XXXX.npz`` (arrays stacked over cameras) and ``RUN/render/render.json``.
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -26,7 +28,12 @@ from pgc.pipeline.compose import (compose, far_field_gaussians, gaussian_uvs, hi
 from pgc.pipeline.garment import body_occluder
 from pgc.pipeline.stage_io import save_npz
 from pgc.splats.binding import bind
-from pgc.types import Camera, GarmentAsset, Light, Mesh
+from pgc.types import Camera, Capture, GarmentAsset, Light, Mesh
+
+
+RENDER_VERSION = 2
+"""Version of the code that computes the render stage: part of its cache key, raised whenever that code
+changes what it writes."""
 
 
 def spread(items: list, count: int) -> list:
@@ -36,39 +43,58 @@ def spread(items: list, count: int) -> list:
     return [items[int(i)] for i in np.linspace(0, len(items) - 1, count).round().astype(int)]
 
 
-class HybridRenderer:
-    """Renders one garment state from one camera with the configured splat renderer, PBR renderer and filter."""
+@dataclass(frozen=True)
+class KernelDecision:
+    """What the kernel rule decided on the training frame: the low-pass kernel size (odd, px) and the far field
+    (``'splats'`` or ``'mesh'``), with the figures that justify them."""
 
-    def __init__(self, asset: GarmentAsset, cfg: RunConfig, light: Light | None = None) -> None:
+    kernel_size: int
+    far_source: str
+    criterion: str
+    per_view: list[int] = field(default_factory=list)
+    far_errors: dict[str, float] = field(default_factory=dict)
+    kernel_views: list[str] = field(default_factory=list)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"kernel_size": self.kernel_size, "far_source": self.far_source, "criterion": self.criterion,
+                "per_view": list(self.per_view), "far_errors": dict(self.far_errors),
+                "kernel_views": list(self.kernel_views)}
+
+
+class HybridRenderer:
+    """Renders one garment state from one camera with the configured splat renderer, PBR renderer and filter.
+    Holds only what every frame shares (the asset, the roles, the stage settings); the light, the far field
+    and the kernel are arguments."""
+
+    def __init__(self, asset: GarmentAsset, cfg: RunConfig) -> None:
         self.asset = asset
         self.splats = cfg.create("splat_renderer")
         self.pbr = cfg.create("pbr_renderer")
         self.filter = cfg.create("filter")
         self.settings = cfg.stage("render")
-        self.light = light or asset.light
         self.uvs = gaussian_uvs(asset.gaussians, asset.garment)
-        self.far_source = "splats" if self.settings.far_source == "auto" else self.settings.far_source
-        """The far field in use; 'auto' is resolved by :func:`choose_kernel`."""
 
     def mesh_at(self, vertices: np.ndarray) -> Mesh:
         g = self.asset.garment
         return Mesh(vertices, g.faces, g.uv, g.face_uv, g.face_labels, name="garment")
 
-    def layers(self, vertices: np.ndarray, camera: Camera, occluder: Mesh | None = None) -> dict[str, Any]:
-        """Near-field, far-field and PBR-only renders of the garment at ``vertices`` (before composition);
-        ``occluder`` (the body in the same frame) shadows the far field and, with ``body_occludes``, hides
-        the garment where it is in front."""
+    def layers(self, vertices: np.ndarray, camera: Camera, light: Light, far_source: str,
+               occluder: Mesh | None = None) -> dict[str, Any]:
+        """Near-field, far-field and PBR-only renders of the garment at ``vertices`` under ``light`` (before
+        composition); ``far_source`` 'splats' (the far field also renders the PBR-only image) or 'mesh' (the far
+        field is the PBR-only image); ``occluder`` (the body in the same frame) shadows the far field and, with
+        ``body_occludes``, hides the garment where it is in front."""
         mesh = self.mesh_at(vertices)
         faces = self.asset.garment.faces
         world = bind(self.asset.gaussians, vertices, faces)
         near = self.splats.render(world, camera)
         raster = rasterize(camera, vertices, faces)
         hides = occluder if self.settings.body_occludes else None
-        pbr = self.pbr.render(mesh, self.asset.material, self.light, camera, occluder=hides)
+        pbr = self.pbr.render(mesh, self.asset.material, light, camera, occluder=hides)
         far = pbr
-        if self.far_source == "splats":
+        if far_source == "splats":
             size = self.settings.texture_size
-            texture, _ = self.pbr.render_texture(mesh, self.asset.material, self.light, camera, (size, size),
+            texture, _ = self.pbr.render_texture(mesh, self.asset.material, light, camera, (size, size),
                                                  occluder=occluder)
             uvs = self.uvs
             if self.settings.far_lookup == "visible":
@@ -83,71 +109,57 @@ class HybridRenderer:
                 far = hide_behind(far, body_depth, depth)
         return {"near": near, "far": far, "pbr": pbr}
 
-    def frame(self, vertices: np.ndarray, camera: Camera, kernel_size: int,
+    def frame(self, vertices: np.ndarray, camera: Camera, light: Light, decision: KernelDecision,
               occluder: Mesh | None = None) -> dict[str, np.ndarray]:
-        lay = self.layers(vertices, camera, occluder)
-        h = compose(lay["near"], lay["far"], self.filter, kernel_size, silhouette=self.settings.silhouette)
+        """Every output layer of one frame and camera, composed with ``decision``'s kernel and far field."""
+        lay = self.layers(vertices, camera, light, decision.far_source, occluder)
+        h = compose(lay["near"], lay["far"], self.filter, decision.kernel_size, silhouette=self.settings.silhouette)
         return {"hybrid": h.hybrid, "near": h.near, "far": h.far, "pbr": lay["pbr"].color,
                 "alpha": h.alpha, "hybrid_alpha": h.hybrid_alpha, "pbr_alpha": lay["pbr"].alpha,
                 "low_far": h.low_far, "high_near": h.high_near}
 
 
 def kernel_views(asset: GarmentAsset, capture, count: int) -> list:
-    """Up to ``count`` capture views for the kernel rule: those the splat fit held out when it recorded them
-    (on views it trained on, the near field's error is optimistic and pulls toward large kernels), else any."""
-    held = set(asset.figures.get("splats", {}).get("heldout_views", []))
+    """Up to ``count`` capture views for the kernel rule: those the splat fit held out (on views it trained on,
+    the near field's error is optimistic and pulls toward large kernels), else any."""
+    held = set(asset.heldout_views)
     pool = [v for v in capture.views if v.camera.name in held] or capture.views
     return spread(pool, count)
 
 
-def choose_kernel(renderer: HybridRenderer, capture, cfg: RunConfig) -> dict[str, Any]:
-    """Apply the configured kernel rule to the training frame (capture pose, lit by the asset's fitted capture
-    light whatever light the run is rendered under) on the kernel views; with ``far_source = 'auto'`` also
-    choose the far field (and set it on ``renderer``)."""
-    run_light, renderer.light = renderer.light, renderer.asset.light
-    try:
-        return _choose_kernel(renderer, capture, cfg)
-    finally:
-        renderer.light = run_light
-
-
-def _choose_kernel(renderer: HybridRenderer, capture, cfg: RunConfig) -> dict[str, Any]:
+def choose_kernel(renderer: HybridRenderer, capture, cfg: RunConfig) -> KernelDecision:
+    """Apply the configured kernel rule to the training frame (the capture pose, lit by the asset's fitted
+    capture light, whatever light the run is rendered under) on the kernel views; with ``far_source = 'auto'``
+    also choose the far field: the one whose hybrid has the lower error there."""
     from pgc.albedo.texture_stage import garment_mask
-    from pgc.filtering.auto import hybrid_error, select_kernel
+    from pgc.filtering.auto import TrainingFrame, hybrid_error, select_kernel
 
     settings = cfg.stage("render")
     sources = ("splats", "mesh") if settings.far_source == "auto" else (settings.far_source,)
-    renderer.far_source = sources[0]  # 'splats' renders the mesh image too: one pass serves both
     rest = renderer.asset.garment.vertices
     body = body_occluder(renderer.asset.body, capture.garment_label_ids)
     views = kernel_views(renderer.asset, capture, settings.kernel_views)
-    per_view = []
+    frames: dict[str, list[TrainingFrame]] = {source: [] for source in sources}
     for view in views:
-        lay = renderer.layers(rest, view.camera, body)
+        # 'splats' renders the mesh image too: one pass serves both sources
+        lay = renderer.layers(rest, view.camera, renderer.asset.light, sources[0], body)
         far = {"splats": lay["far"], "mesh": lay["pbr"]} if len(sources) > 1 else {sources[0]: lay["far"]}
         near = unpremultiply(lay["near"])
         mask = garment_mask(view, capture.garment_label_ids)
-        per_view.append((view, near, lay["near"].alpha, {k: (unpremultiply(f), f.alpha) for k, f in far.items()},
-                         mask))
-    result: dict[str, Any] = {}
-    for source in sources:
-        choices = [select_kernel(settings.kernel, renderer.filter, v.image, a, g, *far[source], m)
-                   for v, g, a, far, m in per_view]
+        for source, f in far.items():
+            frames[source].append(TrainingFrame(image=view.image, near=near, near_alpha=lay["near"].alpha,
+                                                far=unpremultiply(f), far_alpha=f.alpha, mask=mask))
+    decisions = {}
+    for source, per_view in frames.items():
+        choices = [select_kernel(settings.kernel, renderer.filter, frame) for frame in per_view]
         size = int(np.median([c.size for c in choices])) | 1
-        error = float(np.mean([hybrid_error(renderer.filter, v.image, g, a, *far[source], m, size)
-                               for v, g, a, far, m in per_view]))
-        result[source] = {"kernel_size": size, "criterion": choices[0].criterion,
-                          "per_view": [c.size for c in choices], "error": error}
-    chosen = min(result, key=lambda k: result[k]["error"])
-    renderer.far_source = chosen
-    return {**{k: v for k, v in result[chosen].items() if k != "error"}, "far_source": chosen,
-            "far_errors": {k: v["error"] for k, v in result.items()},
-            "kernel_views": [v.camera.name for v in views]}
-
-
-_KERNEL_CHOICES: dict[str, dict[str, Any]] = {}
-"""Kernel rule results of this process by content key (asset, capture, render settings, roles): the rule
-depends on none of a run's own data, so ``pgc demo`` rendering three motions of one asset runs it once."""
+        error = float(np.mean([hybrid_error(renderer.filter, frame, size) for frame in per_view]))
+        decisions[source] = (error, size, choices)
+    chosen = min(decisions, key=lambda k: decisions[k][0])
+    _, size, choices = decisions[chosen]
+    return KernelDecision(kernel_size=size, far_source=chosen, criterion=choices[0].criterion,
+                          per_view=[c.size for c in choices], far_errors={k: v[0] for k, v in decisions.items()},
+                          kernel_views=[v.camera.name for v in views])
 
 
 def envmap_light(run_dir: str | Path, path: str | Path) -> Light:
@@ -160,9 +172,13 @@ def envmap_light(run_dir: str | Path, path: str | Path) -> Light:
 
 
 def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
-               reporter: Reporter | None = None, rotate_light: bool = False) -> Path:
-    """Render the run's frames (every ``frame_stride``-th) from ``views`` capture cameras; with
-    ``rotate_light`` the environment turns 360 degrees about +Y over the rendered frames."""
+               reporter: Reporter | None = None, rotate_light: bool = False,
+               decide: Callable[[HybridRenderer, Capture], KernelDecision] | None = None) -> Path:
+    """Render the run's frames (every ``frame_stride``-th) from ``views`` capture cameras under ``light`` (the
+    asset's fitted light by default); with ``rotate_light`` the environment turns 360 degrees about +Y over the
+    rendered frames. ``decide(renderer, capture)`` gives the kernel rule's decision (default :func:`choose_kernel`
+    with ``cfg``); it is called only when the stage is computed, so ``pgc demo`` passes one that decides once for
+    all motions of its asset."""
     from pgc.io.asset import read_asset
     from pgc.io.capture import read_capture
 
@@ -176,22 +192,18 @@ def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
 
         raise PGCDataError(f"{run_dir}: the run records no capture; its cameras are needed to render")
     settings = cfg.stage("render")
-    renderer = HybridRenderer(asset, cfg, light)
-    key = content_key("render", file_key(run_dir / "garment.npz"), file_key(Path(meta["asset"]) / "manifest.json"),
-                      settings, rotate_light, [cfg.role_key(r) for r in ("splat_renderer", "pbr_renderer", "filter")],
-                      {"radiance": renderer.light.radiance.tolist(), "rotation": renderer.light.rotation_deg,
-                       "envmap": None if renderer.light.envmap is None else array_key(renderer.light.envmap)})
+    renderer = HybridRenderer(asset, cfg)
+    run_light = light or asset.light
+    key = content_key("render", RENDER_VERSION, file_key(run_dir / "garment.npz"),
+                      file_key(Path(meta["asset"]) / "manifest.json"), settings, rotate_light,
+                      [cfg.role_key(r) for r in ("splat_renderer", "pbr_renderer", "filter")],
+                      {"radiance": run_light.radiance.tolist(), "rotation": run_light.rotation_deg,
+                       "envmap": None if run_light.envmap is None else array_key(run_light.envmap)})
 
     def compute(folder: Path):
-        kernel_key = content_key("kernel", file_key(Path(meta["asset"]) / "manifest.json"), file_key(meta["capture"]),
-                                 settings.model_dump(exclude={"views", "frame_stride"}),
-                                 [cfg.role_key(r) for r in ("splat_renderer", "pbr_renderer", "filter")])
         with reporter.stage("choose_kernel") as st:
-            if kernel_key not in _KERNEL_CHOICES:
-                _KERNEL_CHOICES[kernel_key] = choose_kernel(renderer, capture, cfg)
-            kernel = _KERNEL_CHOICES[kernel_key]
-            renderer.far_source = kernel["far_source"]
-            st.record(kernel_size=kernel["kernel_size"], far_source=kernel["far_source"])
+            kernel = decide(renderer, capture) if decide else choose_kernel(renderer, capture, cfg)
+            st.record(kernel_size=kernel.kernel_size, far_source=kernel.far_source)
         vertices = np.load(run_dir / "garment.npz")["vertices"]
         with np.load(run_dir / "body.npz") as z:
             body_vertices, body_faces = z["vertices"], z["faces"]
@@ -199,17 +211,16 @@ def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
         cameras = spread(capture.cameras, settings.views)
         with reporter.stage("render_frames", total=len(frames) * len(cameras)) as st:
             for i, t in enumerate(frames):
-                if rotate_light:
-                    renderer.light = replace(renderer.light, rotation_deg=360.0 * i / len(frames))
+                frame_light = replace(run_light, rotation_deg=360.0 * i / len(frames)) if rotate_light else run_light
                 body = Mesh(body_vertices[t], body_faces, name="body")
-                per_cam = [renderer.frame(vertices[t].astype(np.float64), cam, kernel["kernel_size"], body)
+                per_cam = [renderer.frame(vertices[t].astype(np.float64), cam, frame_light, kernel, body)
                            for cam in cameras]
                 save_npz(folder / f"frame_{t:04d}.npz", **{k: np.stack([p[k] for p in per_cam]) for k in per_cam[0]})
                 st.progress((i + 1) * len(cameras))
-        meta_out = {"frames": frames, "cameras": [c.name for c in cameras], **kernel,
-                    "light": {"radiance": renderer.light.radiance.tolist(), "envmap": renderer.light.envmap is not None,
+        meta_out = {"frames": frames, "cameras": [c.name for c in cameras], **kernel.to_json(),
+                    "light": {"radiance": run_light.radiance.tolist(), "envmap": run_light.envmap is not None,
                               "rotating": rotate_light}}
         write_json(folder / "render.json", meta_out)
-        return meta_out, {"kernel_size": kernel["kernel_size"], "frames": len(frames), "views": len(cameras)}
+        return meta_out, {"kernel_size": kernel.kernel_size, "frames": len(frames), "views": len(cameras)}
 
     return StageCache(run_dir).run("render", key, compute, lambda f: None).folder

@@ -1,6 +1,6 @@
 """Role ``splat_renderer``: differentiable rasterisation of 3D Gaussians and the mesh-embedded splat fit.
 
-Rendering contract (the 3DGS rasteriser, METHOD.md section 2)
+Rendering contract (the 3DGS rasteriser)
 - Gaussians in world space (:class:`pgc.types.WorldGaussians`); camera in the OpenCV convention.
 - EWA splatting: 3D covariance ``R S S^T R^T`` projected with the Jacobian of the perspective map at the
   Gaussian's centre, plus a 0.3 px^2 low-pass dilation on the diagonal of the 2D covariance; Gaussians with
@@ -15,8 +15,9 @@ Rendering contract (the 3DGS rasteriser, METHOD.md section 2)
 - Never NaN/Inf: degenerate scales, zero quaternions and Gaussians behind the camera give finite output.
 
 Fit contract: :meth:`SplatRenderer.fit` optimises mesh-embedded Gaussians (:class:`pgc.types.GaussianSet`)
-on ``mesh`` against the capture with the paper's loss and schedule, reporting progress through ``reporter``,
-and returns them with per-stage figures.
+on ``mesh`` against the capture with the paper's loss and schedule (:class:`FitSplatsSettings`), reporting
+progress through ``reporter``, and returns a :class:`SplatFit`. Implementations run the one fit loop of
+:func:`pgc.splats.fit.fit_splats` and supply its array steps (:class:`pgc.splats.fit.FitBackend`).
 """
 
 from __future__ import annotations
@@ -26,8 +27,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from pydantic import Field
 
 from pgc.events import Reporter
+from pgc.options import Options
 from pgc.roles._base import RoleImplementation
 from pgc.types import Camera, Capture, GaussianSet, Mesh, WorldGaussians
 
@@ -42,9 +45,72 @@ class RenderOutput:
     """(H, W) float32 expected camera depth of the visible splats (0 where alpha is 0)."""
 
 
+class FitSplatsSettings(Options):
+    """Settings of :meth:`SplatRenderer.fit` (the ``[stages.fit_splats]`` table); paper values noted."""
+
+    iterations: int = Field(3000, ge=1, description=(
+        "most Adam steps (paper: 30000); the schedules (position lr decay, SH degree, coarse phase) span this "
+        "count, and the fit stops earlier once the held-out PSNR has converged (converge_db)"))
+    converge_every: int = Field(100, ge=1, description=(
+        "steps between held-out PSNR evaluations (the convergence test and the time-to-PSNR curve)"))
+    converge_db: float = Field(0.05, ge=0.0, description=(
+        "stop when the last converge_patience evaluations raised the best held-out PSNR by less than this (dB); "
+        "0 = always run every iteration"))
+    converge_patience: int = Field(3, ge=1, description="evaluations without converge_db of gain before stopping")
+    converge_after: float = Field(0.25, ge=0.0, le=1.0, description=(
+        "fraction of iterations before which the fit never stops (the coarse phase and the first SH degrees)"))
+    coarse_fraction: float = Field(0.5, ge=0.0, le=1.0, description=(
+        "fraction of the fit trained on half-resolution images (4x fewer pixels per step), then full resolution"))
+    gaussians_per_pixel: float = Field(1.5, gt=0.0, description=(
+        "initial count = this x the mean foreground pixels per training view x 2 (front and back halves)"))
+    min_gaussians: int = Field(2000, ge=1)
+    max_gaussians: int = Field(400000, ge=1)
+    lr_position: float = Field(0.5e-4, gt=0.0, description="local-position lr at the start (paper 0.5e-4)")
+    lr_position_final: float = Field(1e-7, gt=0.0, description="position lr at the end, exponential decay (paper 1e-7)")
+    lr_other: float = Field(0.005, gt=0.0, description=(
+        "lr of the SH DC term, opacity, scale and rotation (paper 0.005); higher SH bands use lr / 20 (3DGS)"))
+    lr_scale: float = Field(0.0, ge=0.0, description=(
+        "multiplies every lr; 0 = auto: sqrt(30000 / iterations) clamped to [1, 10], so a short run moves about "
+        "as far as the paper's 30000 steps"))
+    lambda_l1: float = Field(0.8, ge=0.0, le=1.0, description="weight of L1 vs (1 - SSIM) (paper 0.8)")
+    lambda_mask: float = Field(0.1, ge=0.0, description="mask loss weight (paper 0.1)")
+    mask_band: float = Field(0.03, ge=0.0, description=(
+        "contour band half-width as a fraction of the (cropped, see focus) image height (paper 0.03)"))
+    focus: str = Field("garment", pattern="^(garment|all)$", description=(
+        "'garment': train on each view cropped to the garment's box (plus focus_margin) and place Gaussians only "
+        "on faces seen inside a crop, so the steps spend their pixels and Gaussians where the kept splats are; "
+        "'all': whole images and the whole mesh"))
+    init_color: str = Field("views", pattern="^(views|random)$", description=(
+        "initial DC colour: 'views' = median of the training images that see the Gaussian (a head start for short "
+        "CPU fits), 'random' = U(0.5, 0.7) as in 3DGS"))
+    focus_margin: float = Field(0.06, ge=0.0, le=1.0, description="crop margin, fraction of the image height")
+    max_sh_degree: int = Field(3, ge=0, le=3)
+    sh_interval: int = Field(500, ge=1, description=(
+        "steps between SH degree increases at the paper's 30000 steps; scaled to the fraction of the fit"))
+    holdout_every: int = Field(8, ge=2, description="every k-th view is held out for PSNR and model choice")
+    prune_weight: float = Field(0.5, ge=0.0, description=(
+        "prune Gaussians whose summed compositing weight over all training views is below this (pixels)"))
+    select_count: bool = Field(True, description=(
+        "after fitting, keep the smallest top-contribution fraction whose held-out PSNR is within margin_db"))
+    select_sh: bool = Field(True, description="keep the lowest SH degree whose held-out PSNR is within margin_db")
+    margin_db: float = Field(0.05, ge=0.0)
+    drop_backfacing: bool = Field(False, description=(
+        "drop Gaussians of triangles that face away from every training camera (interior of the garment shell)"))
+    keep: str = Field("garment", pattern="^(garment|all)$", description=(
+        "'garment': return only Gaussians on garment-labelled faces (parent indices stay those of the full mesh)"))
+    checkpoint_dir: str | None = Field(None, description="directory for resumable checkpoints (None: none)")
+    checkpoint_every: int = Field(200, ge=1)
+    log_every: int = Field(25, ge=1)
+    seed: int = 0
+
+
 @dataclass
 class SplatFit:
+    """What a fit returns: the Gaussians, the names of the views held out of training (the render stage
+    chooses its kernel on them), and figures (the same keys for every backend: see :mod:`pgc.splats.fit`)."""
+
     gaussians: GaussianSet
+    heldout_views: list[str] = field(default_factory=list)
     figures: dict[str, Any] = field(default_factory=dict)
 
 
@@ -57,6 +123,6 @@ class SplatRenderer(RoleImplementation, ABC):
         """Render world Gaussians from ``camera``. ``background``: (H, W, 3) or (3,) linear RGB."""
 
     @abstractmethod
-    def fit(self, capture: Capture, mesh: Mesh, settings: Any = None,
+    def fit(self, capture: Capture, mesh: Mesh, settings: FitSplatsSettings | None = None,
             reporter: Reporter | None = None) -> SplatFit:
-        """Fit mesh-embedded Gaussians on ``mesh`` to ``capture`` (settings: the stage's options)."""
+        """Fit mesh-embedded Gaussians on ``mesh`` (the full labelled body mesh) to ``capture``."""

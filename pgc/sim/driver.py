@@ -143,7 +143,7 @@ class XPBDSimulator(Simulator):
         residual, strain, penetration = [], [], []
         n = len(schedule.vertices) - 1
         start = time.perf_counter()
-        with reporter.stage("simulate", total=n, vertices=model.num_vertices, frames=motion.num_frames) as st:
+        with reporter.stage("animate", total=n, vertices=model.num_vertices, frames=motion.num_frames) as st:
             for k in range(1, n + 1):
                 body1 = schedule.vertices[k]
                 x, res, c = runner.step(schedule.vertices[k - 1], body1)

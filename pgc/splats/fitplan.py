@@ -1,10 +1,8 @@
-"""Backend-neutral pieces of the splat fit (numpy): initial count, progress and schedules, contour band,
+"""The numpy pieces of the splat fit loop (:mod:`pgc.splats.fit`): initial count, schedules, contour band,
 half-resolution views, held-out split, back-facing faces, checkpoint fingerprint, the held-out model selection
-and the final garment / back-face selection. Every backend's ``fit_splats``
-uses these, so the fits follow :class:`pgc.pipeline.settings_splats.FitSplatsSettings` identically.
+and the final garment / back-face selection, all following :class:`pgc.roles.splat_renderer.FitSplatsSettings`.
 
-Schedules take the fraction ``p`` in [0, 1] of the fit done: ``step / iterations`` with a fixed step count, or
-the elapsed fraction of ``time_budget_s`` in auto mode.
+Schedules take the fraction ``p = step / iterations`` in [0, 1] of the planned fit.
 """
 
 from __future__ import annotations
@@ -12,22 +10,19 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-from typing import Any, Callable, Sequence, TypeVar
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
 from pgc.errors import PGCDataError
-from pgc.pipeline.settings_splats import FitSplatsSettings
+from pgc.roles.splat_renderer import FitSplatsSettings
 from pgc.types import Camera, Capture, GaussianSet, Mesh, View
 
-V = TypeVar("V")
 PAPER_ITERATIONS = 30000
 COUNT_FRACTIONS = (0.3, 0.45, 0.6, 0.8)
 """Top-contribution fractions tried (smallest first) when choosing the Gaussian count."""
 REST_LR_FACTOR = 1 / 20
 """3DGS: SH coefficients above the DC term learn this much slower than ``lr_other``."""
-CURVE_POINTS = 10
-"""Held-out PSNR is recorded about this many times over a fit (the time-to-PSNR curve)."""
 
 
 def require_labels(mesh: Mesh, s: FitSplatsSettings) -> None:
@@ -35,17 +30,6 @@ def require_labels(mesh: Mesh, s: FitSplatsSettings) -> None:
     if s.keep == "garment" and mesh.face_labels is None:
         raise PGCDataError(f"fit_splats: mesh '{mesh.name}' has no face_labels, so the garment's Gaussians cannot "
                            "be selected; label the faces or set stages.fit_splats.keep = 'all'")
-
-
-def progress(step: int, seconds: float, s: FitSplatsSettings) -> float:
-    """Fraction of the fit done: ``step / iterations`` with a fixed count, else ``seconds / time_budget_s``
-    (clamped to 1)."""
-    return step / s.iterations if s.iterations else min(1.0, seconds / s.time_budget_s)
-
-
-def finished(step: int, p: float, s: FitSplatsSettings) -> bool:
-    """Whether the optimisation is over after ``step`` steps at progress ``p`` (``max_iterations`` caps both modes)."""
-    return (step >= s.iterations if s.iterations else p >= 1.0) or step >= s.max_iterations
 
 
 def initial_count(capture: Capture, s: FitSplatsSettings) -> int:
@@ -144,17 +128,6 @@ def initial_gaussians(capture: Capture, mesh: Mesh, s: FitSplatsSettings, rng: n
 
     g = sample_on_mesh(mesh, initial_count(capture, s), rng, s.max_sh_degree, faces)
     return colors_from_views(g, mesh, list(views)) if s.init_color == "views" else g
-
-
-def training_view(train: Sequence[V], order: list[int], rng: np.random.Generator, p: float,
-                  s: FitSplatsSettings) -> V:
-    """The next training view at progress ``p``: views come in random permutations (epochs; ``order``, the rest
-    of the current one, is consumed from the end and refilled from ``rng``; both live in checkpoints), and
-    during the first ``coarse_fraction`` of the fit as their half-resolution copy (the view's ``coarse``)."""
-    if not order:
-        order.extend(int(i) for i in rng.permutation(len(train)))
-    view = train[order.pop()]
-    return view.coarse if p < s.coarse_fraction else view
 
 
 def heldout_split(n_views: int, every: int) -> tuple[list[int], list[int]]:

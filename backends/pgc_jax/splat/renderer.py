@@ -8,7 +8,8 @@ import numpy as np
 
 from pgc.errors import PGCConfigError, PGCDataError
 from pgc.events import Reporter
-from pgc.roles.splat_renderer import RenderOutput, SplatFit, SplatRenderer
+from pgc.roles.splat_renderer import FitSplatsSettings, RenderOutput, SplatFit, SplatRenderer
+from pgc.splats.fit import fit_splats
 from pgc.splats.reference import background_image
 from pgc.types import Camera, Capture, Mesh, WorldGaussians
 from pgc_jax.specs_splat import JaxSplatOptions
@@ -64,6 +65,8 @@ class JaxSplatRenderer(SplatRenderer):
         return RenderOutput(color=np.asarray(color, np.float32), alpha=np.asarray(alpha, np.float32),
                             depth=np.asarray(depth, np.float32))
 
-    def fit(self, capture: Capture, mesh: Mesh, settings: Any = None, reporter: Reporter | None = None) -> SplatFit:
-        from pgc_jax.splat.fit import fit_splats
-        return fit_splats(self, capture, mesh, settings, reporter or Reporter.silent())
+    def fit(self, capture: Capture, mesh: Mesh, settings: FitSplatsSettings | None = None,
+            reporter: Reporter | None = None) -> SplatFit:
+        from pgc_jax.splat.fit import JaxFitBackend
+
+        return fit_splats(JaxFitBackend(self), capture, mesh, settings, reporter)

@@ -11,9 +11,7 @@ Its error against the path tracer is measured in benchmarks/bench_pbr.py. No mat
 
 from __future__ import annotations
 
-import contextlib
 import math
-from typing import Iterator
 
 import numpy as np
 
@@ -27,6 +25,7 @@ from pgc.types import Camera, Light, Material, Mesh
 from pgc_torch.pbr.lighting import direction_radiance, fibonacci_directions
 from pgc_torch.pbr.visibility import visibility
 from pgc_torch.specs_pbr import TorchPBROptions
+from pgc_torch.threads import torch_threads
 
 
 class TorchPBRRenderer(PBRRenderer):
@@ -90,7 +89,7 @@ class TorchPBRRenderer(PBRRenderer):
         env_t = torch.as_tensor(env, dtype=torch.float32)
         bounce_t = torch.as_tensor(bounce, dtype=torch.float32)
         out = np.zeros((len(points), 3), dtype=np.float32)
-        with _torch_threads(self.options.threads), torch.no_grad():
+        with torch_threads(self.options.threads), torch.no_grad():
             for s in range(0, len(points), self.options.chunk):
                 sl = slice(s, s + self.options.chunk)
                 n = torch.as_tensor(normals[sl], dtype=torch.float32)
@@ -157,20 +156,6 @@ def _merged(mesh: Mesh, other: Mesh) -> Mesh:
     """One mesh holding the faces of both (geometry only), for ray casting."""
     return Mesh(np.concatenate([mesh.vertices, other.vertices]),
                 np.concatenate([mesh.faces, other.faces + len(mesh.vertices)]))
-
-
-@contextlib.contextmanager
-def _torch_threads(n: int) -> Iterator[None]:
-    """Run with ``n`` torch intra-op threads (0: unchanged), restoring the previous count."""
-    import torch
-
-    previous = torch.get_num_threads()
-    if n:
-        torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(previous)
 
 
 def _constant_base(material: Material) -> np.ndarray:

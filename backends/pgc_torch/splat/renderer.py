@@ -2,34 +2,23 @@
 
 from __future__ import annotations
 
-import contextlib
 import os
-from typing import Iterator
 
 import numpy as np
 import torch
 
 from pgc.events import Reporter
-from pgc.roles.splat_renderer import RenderOutput, SplatFit, SplatRenderer
+from pgc.roles.splat_renderer import FitSplatsSettings, RenderOutput, SplatFit, SplatRenderer
+from pgc.splats.fit import fit_splats
 from pgc.types import Camera, Capture, Mesh, WorldGaussians
 
 from pgc_torch.specs_splat import TorchSplatOptions
+from pgc_torch.threads import torch_threads
 
 from . import kernel
 from .binding import quat_to_rotmat
+from .fit import TorchFitBackend
 from .rasterizer import rasterize
-
-
-@contextlib.contextmanager
-def single_threaded_torch() -> Iterator[None]:
-    """Run torch ops on one thread meanwhile: the per-Gaussian tensors are small and intra-op threading costs
-    more than it gains (much more on a busy machine); the compositing kernel keeps its own OpenMP threads."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(threads)
 
 
 class TorchSplatRenderer(SplatRenderer):
@@ -60,7 +49,7 @@ class TorchSplatRenderer(SplatRenderer):
     def render(self, gaussians: WorldGaussians, camera: Camera, background: np.ndarray | None = None,
                sh_degree: int | None = None) -> RenderOutput:
         f32 = torch.float32
-        with torch.no_grad(), single_threaded_torch():
+        with torch.no_grad(), torch_threads(1):
             color, alpha, depth = self.rasterize(
                 torch.as_tensor(np.asarray(gaussians.means), dtype=f32),
                 quat_to_rotmat(torch.as_tensor(np.asarray(gaussians.quats), dtype=torch.float64)).to(f32),
@@ -69,6 +58,6 @@ class TorchSplatRenderer(SplatRenderer):
                 torch.as_tensor(np.asarray(gaussians.sh), dtype=f32), camera, background, sh_degree)
         return RenderOutput(color=color.numpy(), alpha=alpha.numpy(), depth=depth.numpy())
 
-    def fit(self, capture: Capture, mesh: Mesh, settings=None, reporter: Reporter | None = None) -> SplatFit:
-        from .fit import fit_splats
-        return fit_splats(self, capture, mesh, settings, reporter)
+    def fit(self, capture: Capture, mesh: Mesh, settings: FitSplatsSettings | None = None,
+            reporter: Reporter | None = None) -> SplatFit:
+        return fit_splats(TorchFitBackend(self), capture, mesh, settings, reporter)

@@ -16,6 +16,7 @@ from pgc.sim.kernels import (
 )
 from pgc.sim.model import ClothModel
 from pgc.sim.options import XPBDOptions
+from pgc_torch.threads import torch_threads
 
 TORCH = ArrayOps(torch, lambda a, idx, values: a.index_add(0, idx, values), python_loop)
 
@@ -46,14 +47,8 @@ class TorchStepper(Stepper):
     @torch.inference_mode()
     def advance(self, frame: FrameInput) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         inputs = FrameInput(*(self._t(a) for a in frame))
-        threads = torch.get_num_threads()
-        # the per-op work (a few thousand rows) is too small to split: one intra-op thread avoids the
-        # OpenMP barriers that cost 20x on a busy 2-core machine (measured); restored afterwards
-        torch.set_num_threads(1)
-        try:
+        with torch_threads(1):  # a few thousand rows per op: too small to split over threads
             self.x, self.v, res = advance_frame(TORCH, self.settings, self.statics, self.x, self.v, inputs)
-        finally:
-            torch.set_num_threads(threads)
         return (self.x.double().numpy().copy(), self.in_model_order([g[0].double().numpy() for g in res]),
                 self.in_model_order([g[1].double().numpy() for g in res]))
 

@@ -1,0 +1,31 @@
+"""Options of the ``render`` stage (the hybrid of the PBR far field and the Gaussian near field)."""
+
+from pydantic import Field
+
+from pgc.filtering.auto import KernelSelection
+from pgc.options import Options
+
+
+class RenderSettings(Options):
+    kernel: KernelSelection = KernelSelection(mode="error")
+    """How the low-pass kernel is set (the error rule runs on the training frame, as in the paper)."""
+    views: int = Field(4, ge=1, description="capture cameras used for novel frames (evenly spread)")
+    frame_stride: int = Field(10, ge=1, description="render every n-th simulated frame")
+    texture_size: int = Field(256, ge=16, le=4096, description="far-field texture T_t resolution (texels)")
+    kernel_views: int = Field(4, ge=1, description=(
+        "capture views the kernel (and an auto far field) is chosen on: those the splat fit held out, if recorded"))
+    far_source: str = Field("auto", pattern="^(auto|splats|mesh)$", description=(
+        "the far field S_t: 'splats' = the Gaussians coloured by the texture-space PBR radiance (the paper), "
+        "'mesh' = the PBR renderer's image of the mesh (no texture-space pass), 'auto' = the one whose hybrid "
+        "has the lower error on the kernel views (measured with the kernel each source chooses there)"))
+    far_lookup: str = Field("visible", pattern="^(visible|parent)$", description=(
+        "where a Gaussian reads the far-field texture: 'parent' = its parent triangle (the paper), 'visible' = "
+        "the garment surface seen through its centre (see pgc.pipeline.compose)"))
+    silhouette: str = Field("far", pattern="^(near|far)$", description=(
+        "whose alpha shapes the hybrid: 'near' = the Gaussians' (the paper; with far_source 'splats' both agree), "
+        "'far' = the far field's, the simulated mesh's own coverage when the far field is the mesh, with h(G) "
+        "weighted by the Gaussians' alpha"))
+    body_occludes: bool = Field(True, description="the body hides the garment layers where it is in front")
+
+
+SETTINGS = {"render": RenderSettings}
