@@ -290,7 +290,7 @@ class Mesh:
 
 @dataclass
 class GaussianSet:
-    """Mesh-embedded 3D Gaussians (GaussianAvatars binding, METHOD.md section 2).
+    """Mesh-embedded 3D Gaussians (GaussianAvatars binding, docs/method.md section 2).
 
     Each Gaussian lives in the local frame of its parent triangle: origin the centroid, rotation
     columns [normalised edge (v1 - v0), normal, edge x normal], scale k = (base + height) / 2.

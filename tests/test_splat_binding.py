@@ -90,12 +90,13 @@ def test_torch_binding_matches_numpy_and_has_finite_gradients(name):
     ref = bind(g, v, f)
     vt = torch.tensor(v, requires_grad=True)
     params = [torch.tensor(getattr(g, n), dtype=torch.float64, requires_grad=True)
-              for n in ("means", "quats", "log_scales")]
-    means, rot, scales = tbind(torch.as_tensor(g.parent), *params, vt, torch.as_tensor(f))
+              for n in ("means", "quats", "log_scales", "opacity_logits")]
+    means, rot, scales, opac = tbind(torch.as_tensor(g.parent), *params, vt, torch.as_tensor(f))
     np.testing.assert_allclose(means.detach().numpy(), ref.means, atol=1e-9)
     np.testing.assert_allclose(rot.detach().numpy(), quat_to_rotmat(ref.quats), atol=1e-9)
     np.testing.assert_allclose(scales.detach().numpy(), ref.scales, rtol=1e-9)
-    (means.sum() + rot.sum() + scales.sum()).backward()
+    np.testing.assert_allclose(opac.detach().numpy(), ref.opacities, rtol=1e-12)
+    (means.sum() + rot.sum() + scales.sum() + opac.sum()).backward()
     for t in [vt, *params]:
         assert torch.isfinite(t.grad).all()
 

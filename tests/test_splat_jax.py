@@ -179,9 +179,9 @@ def test_images_and_gradients_match_torch(grads32):
     g_jax, data = grads32
     names = ("means", "quats", "log_scales", "opacity_logits", "sh", "vertices")
     t = {k: torch.tensor(np.asarray(data[k], np.float32), requires_grad=True) for k in names}
-    m, r, s = torch_bind(torch.as_tensor(data["parent"]), t["means"], t["quats"], t["log_scales"], t["vertices"],
-                         torch.as_tensor(data["faces"]))
-    c, a, d = rasterize(m, r, s, torch.sigmoid(t["opacity_logits"]), t["sh"], GRAD_CAM,
+    m, r, s, o = torch_bind(torch.as_tensor(data["parent"]), t["means"], t["quats"], t["log_scales"],
+                            t["opacity_logits"], t["vertices"], torch.as_tensor(data["faces"]))
+    c, a, d = rasterize(m, r, s, o, t["sh"], GRAD_CAM,
                         torch.as_tensor(data["bg"], dtype=torch.float32), 3, 0.01, 16, "cpp", 1)
     loss = (torch.cat([c, a[..., None], d[..., None]], -1) * torch.as_tensor(data["weights"], dtype=torch.float32))
     loss.sum().backward()

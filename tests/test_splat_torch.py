@@ -163,8 +163,8 @@ def test_finite_difference_gradients_of_every_parameter_and_vertices(compositor,
               for x in (g.means, g.quats, g.log_scales, g.opacity_logits, g.sh, v)]
 
     def fn(means, quats, log_scales, logits, sh, verts):
-        m, rot, s = bind(parent, means, quats, log_scales, verts, faces)
-        color, alpha, depth = rasterize(m, rot, s, torch.sigmoid(logits), sh, cam, bg, backend=compositor)
+        m, rot, s, o = bind(parent, means, quats, log_scales, logits, verts, faces)
+        color, alpha, depth = rasterize(m, rot, s, o, sh, cam, bg, backend=compositor)
         return (color * weights[0]).sum() + (alpha * weights[1]).sum() + (depth * weights[2]).sum()
 
     assert torch.autograd.gradcheck(fn, inputs, eps=1e-8, atol=1e-5, rtol=1e-3, fast_mode=fast)
@@ -181,8 +181,8 @@ def test_gradients_are_finite_on_hard_cases_and_degenerate_triangles():
     for dtype in (torch.float32, torch.float64):
         inputs = [torch.tensor(np.asarray(x), dtype=dtype, requires_grad=True)
                   for x in (g.means, g.quats, g.log_scales, g.opacity_logits, g.sh, v)]
-        m, rot, s = bind(torch.as_tensor(g.parent), *inputs[:3], inputs[5], torch.as_tensor(f))
-        color, alpha, depth = rasterize(m, rot, s, torch.sigmoid(inputs[3]), inputs[4], cam, None)
+        m, rot, s, o = bind(torch.as_tensor(g.parent), *inputs[:4], inputs[5], torch.as_tensor(f))
+        color, alpha, depth = rasterize(m, rot, s, o, inputs[4], cam, None)
         assert all(torch.isfinite(x).all() for x in (color, alpha, depth))
         (color.sum() + alpha.sum() + depth.sum()).backward()
         for x in inputs:

@@ -1,6 +1,6 @@
 """The synthetic body's motions: a short, coarse version of the penetration criterion (JAX backend).
 
-Criterion (issue 8): penetration deeper than the 0.4 cm offset stays under 0.5 % of the garment vertices
+Criterion: penetration deeper than the 0.4 cm offset stays under 0.5 % of the garment vertices
 at the end of every frame. Coarse garments (5 cm edges), 0.4 s of each motion, 10 substeps x 10 iterations.
 """
 

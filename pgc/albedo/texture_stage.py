@@ -1,4 +1,4 @@
-"""The base-colour texture stage (METHOD.md section 3): per-view albedo -> colour correction -> UV merge.
+"""The base-colour texture stage (docs/method.md, section 3): per-view albedo -> colour correction -> UV merge.
 
 1. choose the views that together see most of the garment (greedy coverage, ``num_views``, paper: 10);
 2. predict albedo per view with the configured ``albedo_estimator``;

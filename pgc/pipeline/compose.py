@@ -1,4 +1,4 @@
-"""Hybrid rendering of one frame (METHOD.md section 5): ``I_t = h(G_t) + l(S_t)``.
+"""Hybrid rendering of one frame (docs/method.md, section 5): ``I_t = h(G_t) + l(S_t)``.
 
 - ``G_t``: the optimised Gaussians rendered on the deformed garment (near field);
 - ``S_t``: the same Gaussians with their colour replaced by the far-field texture ``T_t`` (the PBR

@@ -1,4 +1,4 @@
-"""Role ``filter``: the alpha-aware low-pass of the hybrid composition (METHOD.md section 5).
+"""Role ``filter``: the alpha-aware low-pass of the hybrid composition (docs/method.md, section 5).
 
 Contract
 - ``lowpass(image, alpha, kernel_size)``: Gaussian blur whose kernel is multiplied by ``alpha`` and

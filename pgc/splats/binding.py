@@ -1,4 +1,4 @@
-"""Mesh binding of Gaussians (GaussianAvatars style, METHOD.md section 2), numpy float64.
+"""Mesh binding of Gaussians (GaussianAvatars style, docs/method.md section 2), numpy float64.
 
 Triangle frame of face (v0, v1, v2): origin ``tau`` = centroid; rotation ``R`` with columns
 [a = normalised edge v1 - v0, b = unit normal (v1 - v0) x (v2 - v0), c = a x b] (right-handed, det +1);
@@ -17,6 +17,8 @@ Degenerate triangles (the same rules in every backend, so values and gradients s
 
 from __future__ import annotations
 
+from typing import Any, NamedTuple
+
 import numpy as np
 
 from pgc.errors import PGCDataError
@@ -29,6 +31,17 @@ AREA_REL_EPS = 1e-12
 AREA_ABS_EPS = 1e-30
 K_MIN = 1e-6
 """Smallest triangle scale k (metres)."""
+
+
+class Bound(NamedTuple):
+    """World-space Gaussians as a backend's rasteriser consumes them, in that backend's arrays. Every backend's
+    ``bind(parent, means, quats, log_scales, opacity_logits, vertices, faces)`` and ``apply_frames(tau, R, k,
+    parent, means, quats, log_scales, opacity_logits)`` return one (differentiable in every input)."""
+
+    means: Any      # (N, 3) metres
+    rotmats: Any    # (N, 3, 3) columns = the Gaussian's axes
+    scales: Any     # (N, 3) standard deviations (metres)
+    opacities: Any  # (N,) in (0, 1)
 
 
 def _normalize(x: np.ndarray) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Initial mesh-embedded Gaussians (METHOD.md section 2): uniform triangle point picking."""
+"""Initial mesh-embedded Gaussians (docs/method.md, section 2): uniform triangle point picking."""
 
 from __future__ import annotations
 

@@ -11,22 +11,11 @@ that values *and* gradients stay finite.
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import jax
 import jax.numpy as jnp
 
-from pgc.splats.binding import AREA_ABS_EPS, AREA_REL_EPS, EDGE_EPS, K_MIN
+from pgc.splats.binding import AREA_ABS_EPS, AREA_REL_EPS, EDGE_EPS, K_MIN, Bound
 from pgc_jax.splat.project import quat_to_rotmat
-
-
-class Bound(NamedTuple):
-    """World-space Gaussians as the renderer consumes them."""
-
-    means: jnp.ndarray      # (N, 3)
-    rotmats: jnp.ndarray    # (N, 3, 3) columns = Gaussian axes
-    scales: jnp.ndarray     # (N, 3) standard deviations (metres)
-    opacities: jnp.ndarray  # (N,)
 
 
 def _safe_norm(x: jnp.ndarray) -> jnp.ndarray:

@@ -1,4 +1,4 @@
-"""EWA projection of 3D Gaussians to screen space in JAX (METHOD.md section 2, the 3DGS conventions).
+"""EWA projection of 3D Gaussians to screen space in JAX (docs/method.md section 2, the 3DGS conventions).
 
 Follows :mod:`pgc.splats.projection` (the float64 oracle) exactly: camera in the OpenCV convention,
 world scales clamped to ``MAX_SCALE``, Gaussians with camera depth ``z < near`` culled, 0.3 px^2 dilation,

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import torch
 
-from pgc.splats.binding import AREA_ABS_EPS, AREA_REL_EPS, EDGE_EPS, K_MIN
+from pgc.splats.binding import AREA_ABS_EPS, AREA_REL_EPS, EDGE_EPS, K_MIN, Bound
 from pgc.splats.quaternion import QUAT_EPS
 
 
@@ -56,15 +56,15 @@ def quat_to_rotmat(q: torch.Tensor) -> torch.Tensor:
 
 
 def apply_frames(tau: torch.Tensor, R: torch.Tensor, k: torch.Tensor, parent: torch.Tensor, means: torch.Tensor,
-                 quats: torch.Tensor, log_scales: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """World means (N, 3), rotation matrices ``R_face @ rot(r)`` (N, 3, 3) and scales ``k s`` (N, 3) from
-    per-face frames; the rotation equals that of the numpy binding's world quaternion ``R r``."""
+                 quats: torch.Tensor, log_scales: torch.Tensor, opacity_logits: torch.Tensor) -> Bound:
+    """World Gaussians from per-face frames: means ``k R mu + tau``, rotation matrices ``R_face @ rot(r)`` (the
+    numpy binding's world quaternion ``R r``), scales ``k s``, opacities ``sigmoid(logit)``."""
     Rp, kp = R[parent], k[parent][:, None]
-    world_means = kp * torch.einsum("nij,nj->ni", Rp, means) + tau[parent]
-    return world_means, Rp @ quat_to_rotmat(quats), kp * torch.exp(log_scales)
+    return Bound(means=kp * torch.einsum("nij,nj->ni", Rp, means) + tau[parent], rotmats=Rp @ quat_to_rotmat(quats),
+                 scales=kp * torch.exp(log_scales), opacities=torch.sigmoid(opacity_logits))
 
 
 def bind(parent: torch.Tensor, means: torch.Tensor, quats: torch.Tensor, log_scales: torch.Tensor,
-         vertices: torch.Tensor, faces: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """:func:`apply_frames` on the frames of the mesh (vertices (V, 3), faces (F, 3))."""
-    return apply_frames(*triangle_frames(vertices, faces), parent, means, quats, log_scales)
+         opacity_logits: torch.Tensor, vertices: torch.Tensor, faces: torch.Tensor) -> Bound:
+    """World Gaussians of local parameters (GaussianSet layout) on the mesh (vertices (V, 3), faces (F, 3))."""
+    return apply_frames(*triangle_frames(vertices, faces), parent, means, quats, log_scales, opacity_logits)

@@ -63,8 +63,8 @@ class TorchFitBackend(FitBackend):
 
     def _world(self, keep: torch.Tensor | None = None) -> tuple[torch.Tensor, ...]:
         p = self.params
-        means, rot, scales = apply_frames(*self.frames, self.parent, p["means"], p["quats"], p["log_scales"])
-        world = (means, rot, scales, torch.sigmoid(p["opacity_logits"]), p["sh"])
+        world = (*apply_frames(*self.frames, self.parent, p["means"], p["quats"], p["log_scales"],
+                               p["opacity_logits"]), p["sh"])
         return world if keep is None else tuple(t[keep] for t in world)
 
     def step(self, handle: _Arrays, degree: int, lrs: dict[str, Any], t: int,
