@@ -81,3 +81,62 @@ def test_the_fit_stops_on_heldout_convergence_and_repeats_bit_for_bit(scene):
     assert second.figures["iterations"] == f["iterations"]
     for name in ("parent", "means", "quats", "log_scales", "opacity_logits", "sh"):
         assert getattr(first.gaussians, name).tobytes() == getattr(second.gaussians, name).tobytes(), name
+
+
+def _state(opacity: np.ndarray, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    n = len(opacity)
+    logits = np.log(opacity) - np.log1p(-opacity)
+    arrays = {"means": rng.normal(size=(n, 3)), "quats": rng.normal(size=(n, 4)),
+              "log_scales": rng.normal(-2, 0.1, size=(n, 3)), "opacity_logits": logits, "sh": rng.normal(size=(n, 4, 3))}
+    state = {"parent": np.arange(n) * 10}
+    for name, a in arrays.items():
+        state[f"p_{name}"] = a.astype(np.float32)
+        state[f"m_{name}"] = np.ones_like(a, np.float32)
+        state[f"v_{name}"] = np.ones_like(a, np.float32)
+    return state
+
+
+def test_relocation_moves_dead_gaussians_and_keeps_each_stack_s_opacity():
+    from pgc.splats.fit import relocate
+
+    rng = np.random.default_rng(0)
+    opacity = np.array([0.9, 0.001, 0.5, 0.002, 0.0001, 0.3])
+    state = _state(opacity, rng)
+    before = {k: v.copy() for k, v in state.items()}
+    moved = relocate(state, np.random.default_rng(1), 0.005)
+    assert moved == 3 and all(v.shape == before[k].shape for k, v in state.items())
+    dead, live = [1, 3, 4], [0, 2, 5]
+    new_opacity = 1.0 / (1.0 + np.exp(-state["p_opacity_logits"].astype(np.float64)))
+    for src in live:  # a source and its copies composite to the source's old opacity
+        stack = [src] + [d for d in dead if state["parent"][d] == before["parent"][src]]
+        assert np.allclose(new_opacity[stack], new_opacity[src])
+        np.testing.assert_allclose(1 - np.prod(1 - new_opacity[stack]), opacity[src], rtol=1e-5)
+        if len(stack) == 1:  # not drawn: untouched
+            for k in state:
+                np.testing.assert_array_equal(state[k][src], before[k][src])
+    for d in dead:
+        src = int(np.flatnonzero(before["parent"] == state["parent"][d])[0])
+        assert src in live
+        for name in ("quats", "log_scales", "sh"):
+            np.testing.assert_array_equal(state[f"p_{name}"][d], before[f"p_{name}"][src])
+        assert 0 < np.abs(state["p_means"][d] - before["p_means"][src]).max() < 0.2  # jittered by ~0.5 local scale
+        assert all(np.all(state[f"{m}_{n}"][d] == 0) for m in "mv" for n in ("means", "sh"))
+    again = _state(opacity, np.random.default_rng(0))
+    relocate(again, np.random.default_rng(1), 0.005)
+    assert all(np.array_equal(again[k], state[k]) for k in state)  # seeded: the same moves
+    assert relocate(_state(np.full(4, 0.5), rng), rng, 0.005) == 0  # nothing dead: nothing moves
+
+
+@pytest.mark.slow
+def test_fit_with_relocation_moves_gaussians_and_stays_finite(scene):
+    pytest.importorskip("torch")
+    from pgc_torch.splat.renderer import TorchSplatRenderer
+
+    capture, mesh = scene
+    settings = dict(FAST, iterations=40, converge_db=0.0, relocate_every=10, relocate_opacity=0.09,
+                    select_count=False, select_sh=False, keep="all", prune_weight=0.0)
+    fit = TorchSplatRenderer({"threads": 1}).fit(capture, mesh, settings)
+    g = fit.gaussians
+    assert fit.figures["relocated"] > 0 and len(g) == fit.figures["initial_gaussians"]
+    assert all(np.all(np.isfinite(getattr(g, n))) for n in ("means", "quats", "log_scales", "opacity_logits", "sh"))
+    assert g.parent.min() >= 0 and g.parent.max() < len(mesh.faces)

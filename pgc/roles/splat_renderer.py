@@ -59,6 +59,13 @@ class FitSplatsSettings(Options):
     converge_patience: int = Field(3, ge=1, description="evaluations without converge_db of gain before stopping")
     converge_after: float = Field(0.25, ge=0.0, le=1.0, description=(
         "fraction of iterations before which the fit never stops (the coarse phase and the first SH degrees)"))
+    relocate_every: int = Field(0, ge=0, description=(
+        "steps between relocations of dead Gaussians (opacity below relocate_opacity) onto live ones, sampled by "
+        "opacity (3DGS-MCMC style: the count stays fixed, opacity is split so the composite is unchanged); "
+        "0 = never"))
+    relocate_opacity: float = Field(0.005, gt=0.0, lt=1.0, description="opacity under which a Gaussian is dead")
+    relocate_until: float = Field(0.75, ge=0.0, le=1.0, description=(
+        "fraction of iterations after which Gaussians are no longer relocated (they settle before selection)"))
     coarse_fraction: float = Field(0.5, ge=0.0, le=1.0, description=(
         "fraction of the fit trained on half-resolution images (4x fewer pixels per step), then full resolution"))
     gaussians_per_pixel: float = Field(1.5, gt=0.0, description=(

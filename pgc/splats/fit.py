@@ -54,6 +54,9 @@ from pgc.types import Camera, Capture, GaussianSet, Mesh, View
 
 PARAMETERS = ("means", "quats", "log_scales", "opacity_logits", "sh")
 """The optimised arrays, named as the fields of :class:`pgc.types.GaussianSet` (``sh`` holds every band)."""
+RELOCATION_JITTER = 0.5
+"""A relocated copy's local position moves by a normal sample of this many of its own local scales, so copies
+of one Gaussian do not coincide (coincident copies get equal gradients and never separate)."""
 ADAM_B1, ADAM_B2, ADAM_EPS = 0.9, 0.999, 1e-15
 
 
@@ -126,7 +129,8 @@ class FitBackend(ABC):
 
     @abstractmethod
     def state(self) -> dict[str, np.ndarray]:
-        """Parameters and Adam moments as numpy: ``p_NAME``, ``m_NAME``, ``v_NAME`` for NAME in PARAMETERS."""
+        """Parameters and Adam moments as numpy: ``p_NAME``, ``m_NAME``, ``v_NAME`` for NAME in PARAMETERS, and
+        ``parent`` (N,) the parent faces."""
 
     @abstractmethod
     def load_state(self, arrays: dict[str, np.ndarray]) -> None:
@@ -159,6 +163,47 @@ def learning_rates(p: float, factor: float, n_sh: int, s: FitSplatsSettings) -> 
     lrs["sh"] = (np.where(np.arange(n_sh)[:, None] == 0, 1.0, REST_LR_FACTOR) * (factor * s.lr_other)).astype(
         np.float32)
     return lrs
+
+
+def relocate(state: dict[str, np.ndarray], rng: np.random.Generator, threshold: float) -> int:
+    """Move every dead Gaussian (opacity below ``threshold``) onto a live one sampled with probability
+    proportional to opacity (3DGS-MCMC relocation), in place on a :meth:`FitBackend.state` dict; returns how
+    many moved. A source drawn ``c - 1`` times and its copies all get the opacity ``1 - (1 - o)^(1 / c)``, so
+    their stack composites to the source's ``o``; copies take the source's parent, rotation, scale and colour,
+    and its local position jittered by :data:`RELOCATION_JITTER` local scales; every changed Gaussian restarts
+    with zero Adam moments. The count never changes."""
+    logits = state["p_opacity_logits"].astype(np.float64)
+    opacity = 0.5 * (1.0 + np.tanh(0.5 * logits))
+    dead = np.flatnonzero(opacity < threshold)
+    live = np.flatnonzero(opacity >= threshold)
+    if dead.size == 0 or live.size == 0:
+        return 0
+    sources = rng.choice(live, size=dead.size, p=opacity[live] / opacity[live].sum())
+    drawn = np.unique(sources)
+    copies = np.bincount(sources, minlength=len(opacity))[drawn] + 1
+    logits = state["p_opacity_logits"].copy()
+    logits[drawn] = _logit(1.0 - (1.0 - opacity[drawn]) ** (1.0 / copies))
+    state["p_opacity_logits"] = logits
+    state["parent"] = state["parent"].copy()
+    state["parent"][dead] = state["parent"][sources]
+    for name in PARAMETERS:
+        values = state[f"p_{name}"].copy()
+        values[dead] = values[sources]
+        state[f"p_{name}"] = values
+    jitter = rng.standard_normal(state["p_means"][dead].shape) * np.exp(state["p_log_scales"][dead])
+    state["p_means"][dead] += (RELOCATION_JITTER * jitter).astype(state["p_means"].dtype)
+    touched = np.concatenate([dead, drawn])
+    for name in PARAMETERS:
+        for moment in ("m", "v"):
+            values = state[f"{moment}_{name}"].copy()
+            values[touched] = 0
+            state[f"{moment}_{name}"] = values
+    return int(dead.size)
+
+
+def _logit(p: np.ndarray) -> np.ndarray:
+    p = np.clip(p, 1e-7, 1.0 - 1e-7)
+    return (np.log(p) - np.log1p(-p)).astype(np.float32)
 
 
 def converged(evaluations: list[float], s: FitSplatsSettings) -> bool:
@@ -243,6 +288,7 @@ def _fit(backend: FitBackend, capture: Capture, mesh: Mesh, s: FitSplatsSettings
     lr_factor = s.lr_scale or auto_lr_factor(s.iterations)
     n_sh = initial.sh.shape[1]
     stopped = "converged" if curve and curve[-1].get("converged") else "iterations"
+    relocated = loaded[1].get("relocated", 0) if loaded is not None else 0
     start = time.perf_counter() - elapsed
     with reporter.stage("fit_splats", total=s.iterations, gaussians=len(initial), views=len(train),
                         heldout=len(held)) as st:
@@ -252,6 +298,12 @@ def _fit(backend: FitBackend, capture: Capture, mesh: Mesh, s: FitSplatsSettings
             view = training_view(train, order, rng, p < s.coarse_fraction)
             loss, mse = backend.step(view.handle, degree, learning_rates(p, lr_factor, n_sh, s), step + 1, s)
             step += 1
+            if s.relocate_every and step % s.relocate_every == 0 and step < s.relocate_until * s.iterations:
+                state = backend.state()
+                moved = relocate(state, rng, s.relocate_opacity)
+                if moved:
+                    backend.load_state(state)
+                relocated += moved
             done = step >= s.iterations
             evaluate = bool(held) and (step % s.converge_every == 0 or done)
             if step % s.log_every == 0 or evaluate or done:
@@ -270,12 +322,13 @@ def _fit(backend: FitBackend, capture: Capture, mesh: Mesh, s: FitSplatsSettings
             if ckpt is not None and (step % s.checkpoint_every == 0 or done or stopped == "converged"):
                 _save_checkpoint(ckpt, backend, {
                     "fingerprint": key, "step": step, "curve": curve, "order": order, "evaluations": evaluations,
+                    "relocated": relocated,
                     "elapsed": time.perf_counter() - start, "rng": rng.bit_generator.state})
         fit_seconds = time.perf_counter() - start
         degree = sh_degree_at(step / s.iterations, s)
         figures: dict[str, Any] = {"iterations": step, "stopped": stopped, "initial_gaussians": len(initial),
                                    "fit_seconds": fit_seconds, "time_to_psnr": curve, "views_train": len(train),
-                                   "views_heldout": len(held), "lr_factor": lr_factor}
+                                   "views_heldout": len(held), "lr_factor": lr_factor, "relocated": relocated}
         contrib = backend.contributions([v.handle for v in train], degree)
         keep, degree = select_model(contrib, lambda k, d: heldout_psnr(backend, held, d, k), degree, bool(held),
                                     s, figures)

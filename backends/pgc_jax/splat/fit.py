@@ -180,11 +180,12 @@ class JaxFitBackend(FitBackend):
         return total
 
     def state(self) -> dict[str, np.ndarray]:
-        out = {f"p_{n}": np.asarray(t) for n, t in self.params.items()}
+        out = {"parent": np.asarray(self.parent).copy()} | {f"p_{n}": np.asarray(t) for n, t in self.params.items()}
         out |= {f"m_{n}": np.asarray(t) for n, t in self.adam["m"].items()}
         return out | {f"v_{n}": np.asarray(t) for n, t in self.adam["v"].items()}
 
     def load_state(self, arrays: dict[str, np.ndarray]) -> None:
+        self.parent = jnp.asarray(arrays["parent"])
         self.params = {n: jnp.asarray(arrays[f"p_{n}"], self.dtype) for n in PARAMETERS}
         self.adam = {k: {n: jnp.asarray(arrays[f"{k}_{n}"], self.dtype) for n in PARAMETERS} for k in ("m", "v")}
 

@@ -104,12 +104,14 @@ class TorchFitBackend(FitBackend):
         return total.numpy()
 
     def state(self) -> dict[str, np.ndarray]:
-        out = {f"p_{n}": p.detach().numpy().copy() for n, p in self.params.items()}
+        out = {"parent": self.parent.numpy().copy()}
+        out |= {f"p_{n}": p.detach().numpy().copy() for n, p in self.params.items()}
         for n, (m, v) in self.moments.items():
             out[f"m_{n}"], out[f"v_{n}"] = m.numpy().copy(), v.numpy().copy()
         return out
 
     def load_state(self, arrays: dict[str, np.ndarray]) -> None:
+        self.parent = torch.as_tensor(np.asarray(arrays["parent"], np.int64))
         with torch.no_grad():
             for n, p in self.params.items():
                 p.copy_(torch.as_tensor(arrays[f"p_{n}"]))
