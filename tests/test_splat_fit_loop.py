@@ -140,3 +140,20 @@ def test_fit_with_relocation_moves_gaussians_and_stays_finite(scene):
     assert fit.figures["relocated"] > 0 and len(g) == fit.figures["initial_gaussians"]
     assert all(np.all(np.isfinite(getattr(g, n))) for n in ("means", "quats", "log_scales", "opacity_logits", "sh"))
     assert g.parent.min() >= 0 and g.parent.max() < len(mesh.faces)
+
+
+@pytest.mark.slow
+def test_surface_term_keeps_gaussians_on_their_triangles_in_both_backends(scene):
+    pytest.importorskip("torch")
+    pytest.importorskip("jax")
+    from pgc_jax.splat.renderer import JaxSplatRenderer
+    from pgc_torch.splat.renderer import TorchSplatRenderer
+
+    capture, mesh = scene
+    settings = dict(FAST, iterations=15, converge_db=0.0, select_count=False, select_sh=False, keep="all",
+                    prune_weight=0.0, lr_position=2e-3, lr_position_final=2e-3)
+    for renderer in (TorchSplatRenderer({"threads": 1}), JaxSplatRenderer({"tile_size": 8, "chunk_size": 16})):
+        free = renderer.fit(capture, mesh, dict(settings, lambda_surface=0.0)).gaussians
+        held = renderer.fit(capture, mesh, dict(settings, lambda_surface=100.0)).gaussians
+        offset = {k: float(np.sqrt(np.mean(g.means[:, 1] ** 2))) for k, g in (("free", free), ("held", held))}
+        assert offset["held"] < 0.5 * offset["free"], (type(renderer).__name__, offset)

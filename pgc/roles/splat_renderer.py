@@ -81,6 +81,10 @@ class FitSplatsSettings(Options):
         "as far as the paper's 30000 steps"))
     lambda_l1: float = Field(0.8, ge=0.0, le=1.0, description="weight of L1 vs (1 - SSIM) (paper 0.8)")
     lambda_mask: float = Field(0.1, ge=0.0, description="mask loss weight (paper 0.1)")
+    lambda_surface: float = Field(0.0, ge=0.0, description=(
+        "weight of the surface term: the mean squared offset of each Gaussian's local position along its "
+        "triangle's normal (in units of the triangle scale k), keeping the near field on the surface it "
+        "moves with; 0 = off (the paper)"))
     mask_band: float = Field(0.03, ge=0.0, description=(
         "contour band half-width as a fraction of the (cropped, see focus) image height (paper 0.03)"))
     focus: str = Field("garment", pattern="^(garment|all)$", description=(

@@ -77,9 +77,9 @@ def _contributions(params, frames, parent, sh_mask, cam, background, gauss, tile
     return jax.grad(red)(jnp.zeros((n, 3), background.dtype))[:, 0]
 
 
-@partial(jax.jit, static_argnames=("width", "height", "tile", "near", "lambda_l1", "lambda_mask"))
+@partial(jax.jit, static_argnames=("width", "height", "tile", "near", "lambda_l1", "lambda_mask", "lambda_surface"))
 def _train_step(params, adam, t, lrs, frames, parent, sh_mask, cam, background, target, mask, band, gauss, tiles,
-                first, *, width, height, tile, near, lambda_l1, lambda_mask):
+                first, *, width, height, tile, near, lambda_l1, lambda_mask, lambda_surface):
     """One Adam step (number ``t`` >= 1) on one view; returns new params, Adam state, loss and the sRGB MSE."""
     n = params["means"].shape[0]
     ones, zero = jnp.ones((n,), target.dtype), jnp.zeros((n, 3), target.dtype)
@@ -89,7 +89,8 @@ def _train_step(params, adam, t, lrs, frames, parent, sh_mask, cam, background, 
                                width=width, height=height, tile=tile, near=near)
         pred = linear_to_srgb(color)
         loss = lambda_l1 * jnp.mean(jnp.abs(pred - target)) + (1.0 - lambda_l1) * (1.0 - ssim(pred, target))
-        return loss + lambda_mask * jnp.mean(band * jnp.abs(mask - alpha)), pred
+        surface = lambda_surface * jnp.mean(p["means"][:, 1] ** 2) if lambda_surface else 0.0
+        return loss + lambda_mask * jnp.mean(band * jnp.abs(mask - alpha)) + surface, pred
 
     (loss, pred), grads = jax.value_and_grad(loss_fn, has_aux=True)(params)
     new_p, new_m, new_v = {}, {}, {}
@@ -160,7 +161,8 @@ class JaxFitBackend(FitBackend):
         self.params, self.adam, loss, mse = _train_step(
             self.params, self.adam, float(t), lrs, self.frames, self.parent, _sh_mask(degree, self.dtype),
             handle.cam, handle.background, handle.target, handle.mask, handle.band, b.gauss, b.tile, b.first,
-            **self._kw(handle), lambda_l1=float(s.lambda_l1), lambda_mask=float(s.lambda_mask))
+            **self._kw(handle), lambda_l1=float(s.lambda_l1), lambda_mask=float(s.lambda_mask),
+            lambda_surface=float(s.lambda_surface))
         return loss, mse
 
     def render(self, handle: _Arrays, degree: int, keep: np.ndarray | None = None) -> np.ndarray:

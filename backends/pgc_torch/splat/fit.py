@@ -74,6 +74,8 @@ class TorchFitBackend(FitBackend):
         loss = s.lambda_l1 * (pred - handle.target).abs().mean() + (1 - s.lambda_l1) * (1 - ssim(pred, handle.target))
         if handle.mask is not None and s.lambda_mask > 0:
             loss = loss + s.lambda_mask * (handle.band * (handle.mask - alpha).abs()).mean()
+        if s.lambda_surface > 0:  # local column 1 is the triangle normal
+            loss = loss + s.lambda_surface * (self.params["means"][:, 1] ** 2).mean()
         for p in self.params.values():
             p.grad = None
         loss.backward()
