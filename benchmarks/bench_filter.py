@@ -6,7 +6,7 @@ the full k x k kernel, the same alpha renormalisation) measured in the same run.
 does not depend on the image size, so for images above ``--naive-max`` px it is timed on a central crop of
 that size and scaled by the pixel count (marked ``naive_extrapolated``). Error: the largest absolute
 difference to the float64 separable reference, everywhere and on the garment (alpha > 0; the O(1) 3-box
-approximation differs most where the blurred alpha is tiny, far outside the garment). Records (JSON) follow DESIGN.md's benchmark format.
+approximation differs most where the blurred alpha is tiny, far outside the garment). Records (JSON) follow docs/bench.md, "Record schema".
 
     python benchmarks/bench_filter.py [--sizes 256 1024 2048] [--kernels 7 31 71 151] [--out bench_filter.json]
 """

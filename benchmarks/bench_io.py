@@ -5,7 +5,7 @@ Times are reported as ratios to ``numpy.save`` of the same arrays (raw bytes, no
 measured in the same run, because wall-clock seconds on a shared machine are noisy. Errors: the largest
 absolute round-trip difference of the colour images in linear RGB (and in sRGB code units), of the masks,
 and of the Gaussian parameters. Peak memory is traced with tracemalloc (numpy buffers included).
-Records (JSON) follow DESIGN.md's benchmark format.
+Records (JSON) follow docs/bench.md, "Record schema".
 
     python benchmarks/bench_io.py [--views 32] [--size 256] [--gaussians 200000] [--out bench_io.json]
 """

@@ -8,7 +8,7 @@ sleeve or the hem cannot be triangulated; ``chamfer_mean_any_view`` uses every f
 Chamfer mean / 95th percentile, normal consistency, F-score
 at 5 mm and 1 cm, garment-label IoU, the remeshed surface's minimum angle and manifoldness, and seconds per
 stage. Speed is also given as a ratio to the ``visual_hull`` baseline measured in the same run (the machine
-is shared, wall-clock seconds are noisy). Records follow DESIGN.md's benchmark format.
+is shared, wall-clock seconds are noisy). Records follow docs/bench.md, "Record schema".
 
     python benchmarks/bench_reconstruct.py [--capture DIR] [--implementations visual_hull open3d colmap mesh]
                                            [--target-vertices 15000] [--out bench_reconstruct.json]

@@ -7,7 +7,7 @@ JAX renderer is timed forward (``render``: projection, host binning, compositing
 binning plus one jitted ``value_and_grad`` of the image w.r.t. every world parameter; compilation excluded,
 it is reported separately), as ratios to the torch renderer measured in the same run. Errors: largest
 absolute colour difference to the reference (tiny scene) or to the torch image; relative difference of the
-gradients to torch's. Records (JSON) follow DESIGN.md's benchmark format.
+gradients to torch's. Records (JSON) follow docs/bench.md, "Record schema".
 
     python benchmarks/bench_splat_jax.py [--sizes 128 256] [--counts 10000 50000] [--blocks 16x32 8x16 16x64]
 """
