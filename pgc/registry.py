@@ -39,6 +39,8 @@ ROLES: dict[str, str] = {
     "simulator": "pgc.roles.simulator:Simulator",
     "filter": "pgc.roles.filter:Filter",
     "metric": "pgc.roles.metric:Metric",
+    "scene_renderer": "pgc.roles.scene_renderer:SceneRenderer",
+    "calibrator": "pgc.roles.calibrator:Calibrator",
 }
 """Role name -> its abstract interface (lazy reference)."""
 
@@ -143,7 +145,7 @@ class Implementation:
             options = self.validate_options(options)
         try:
             cls = load_reference(self.spec.factory)
-        except Exception as exc:  # an import error inside the plugin: report, with its cause
+        except (Exception, SystemExit) as exc:  # an import error (or sys.exit) inside the plugin: report it
             raise PGCPluginError(f"{self.role} '{self.name}': cannot import {self.spec.factory}: "
                                  f"{type(exc).__name__}: {exc}") from exc
         return cls(options) if options is not None else cls()
@@ -179,7 +181,7 @@ class Registry:
                 continue
             try:
                 module = ep.load()
-            except Exception as exc:
+            except (Exception, SystemExit) as exc:  # a plugin calling sys.exit on import must not end the caller
                 registry.broken.append(BrokenPlugin(ep.name, provider, f"{type(exc).__name__}: {exc}",
                                                     traceback.format_exc()))
                 continue
@@ -195,7 +197,7 @@ class Registry:
             specs = list(specs()) if specs is not None else []
             for spec in specs:
                 self.add(spec, provider=provider, plugin=name)
-        except Exception as exc:
+        except (Exception, SystemExit) as exc:
             if self.plugin_manager.is_registered(plugin):
                 self.plugin_manager.unregister(plugin)
             self.broken.append(BrokenPlugin(name, provider, f"{type(exc).__name__}: {exc}", traceback.format_exc()))

@@ -12,9 +12,10 @@ import pytest
 
 from pgc.errors import PGCConfigError, PGCDataError
 from pgc.registry import Registry
-from pgc.testing.conformance import (AlbedoEstimatorConformance, BRDFConformance, FilterConformance,
-                                     MetricConformance, PBRRendererConformance, ReconstructorConformance,
-                                     SimulatorConformance, SplatRendererConformance)
+from pgc.testing.conformance import (AlbedoEstimatorConformance, BRDFConformance, CalibratorConformance,
+                                     FilterConformance, MetricConformance, PBRRendererConformance,
+                                     ReconstructorConformance, SceneRendererConformance, SimulatorConformance,
+                                     SplatRendererConformance)
 
 REGISTRY = Registry.discover()
 
@@ -100,5 +101,17 @@ class TestPBRRendererImplementations(PBRRendererConformance):
 @pytest.mark.slow
 class TestReconstructorImplementations(ReconstructorConformance):
     @pytest.fixture(params=_available("reconstructor"))
+    def implementation(self, request, built):
+        return built(request.param)
+
+
+class TestSceneRendererImplementations(SceneRendererConformance):
+    @pytest.fixture(params=_available("scene_renderer"))
+    def implementation(self, request, built):
+        return built(request.param)
+
+
+class TestCalibratorImplementations(CalibratorConformance):
+    @pytest.fixture(params=_available("calibrator"))
     def implementation(self, request, built):
         return built(request.param)

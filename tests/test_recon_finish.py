@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from pgc.errors import PGCDataError
+from pgc.geometry import finish as finish_mod
 from pgc.geometry import metrics
 from pgc.geometry.garment import garment_selection
 from pgc.geometry.hull import visual_hull
@@ -13,7 +14,8 @@ from pgc.geometry.options import FinishOptions
 from pgc.geometry.testscene import body_mesh, make_capture
 from pgc.types import Mesh
 
-finish_mod = pytest.importorskip("pgc_meshlab.finish", reason="needs pymeshlab + xatlas: pip install 'pgc[meshlab]'")
+for _module in ("pymeshlab", "xatlas"):
+    pytest.importorskip(_module, reason="needs pymeshlab + xatlas: pip install 'pgc[meshlab]'")
 
 
 @pytest.fixture(scope="module")
@@ -106,3 +108,14 @@ def test_remove_slivers_keeps_a_closed_manifold():
     assert r["min_angle_deg"] > 5.0 and r["degenerate_faces"] == 0
     # the surface stays where it was (collapses move vertices by half a short edge)
     assert metrics.compare_meshes(Mesh(v, f), m, samples=5000)["chamfer_mean"] < 0.005
+
+
+def test_missing_meshlab_extra_is_one_clear_error(monkeypatch):
+    import sys
+
+    from pgc.errors import PGCPluginError
+
+    monkeypatch.setitem(sys.modules, "xatlas", None)  # what an installation without the extra sees
+    m = body_mesh(0.06)
+    with pytest.raises(PGCPluginError, match=r"pip install 'pgc\[meshlab\]'"):
+        finish_mod.unwrap(m.vertices, m.faces)

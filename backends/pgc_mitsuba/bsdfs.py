@@ -22,9 +22,9 @@ import numpy as np
 
 from pgc.brdfs.maths import EVALUATORS, ltc_coefficients, ltc_density, sheen_albedo, sheen_frame
 from pgc.brdfs.parameters import PARAMETERS
-from pgc.brdfs.xp import namespace
 from pgc.errors import PGCDataError
 from pgc.types import Material
+from pgc_mitsuba.ops import drjit_ops
 from pgc_mitsuba.runtime import mitsuba
 
 PLUGIN_NAMES = {"lambertian": "pgc_lambertian", "disney": "pgc_disney", "pgc-sheen": "pgc_sheen"}
@@ -93,7 +93,7 @@ def base_color_texture(material: Material) -> dict[str, Any]:
 def _make_class(mi: Any, model: str) -> type:
     import drjit as dr
 
-    ops = namespace("drjit")
+    ops = drjit_ops()
     evaluate = EVALUATORS[model]
     parameters = PARAMETERS[model]
 

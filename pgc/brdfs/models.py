@@ -16,7 +16,7 @@ class ClothBRDF(BRDF):
 
     ``eval_cos(wi, wo, ...)``: ``wi`` toward the light, ``wo`` toward the viewer (local frame, z = normal),
     unit vectors (..., 3); returns ``f(wi, wo) max(cos theta_i, 0)`` (..., 3). Missing parameters take
-    their initial values; unknown names are an error. ``backend``: "numpy", "torch", "jax" or "drjit".
+    their initial values; unknown names are an error. ``backend``: "numpy", "torch" or "jax".
     """
 
     model: ClassVar[str] = ""

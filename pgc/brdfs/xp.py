@@ -1,10 +1,11 @@
-"""Array namespaces for the BRDF maths: one formula, four array libraries (numpy, torch, jax, Dr.Jit).
+"""Array namespaces for the BRDF maths: one formula, several array libraries.
 
 The maths in :mod:`pgc.brdfs.maths` works on *scalar fields* (one value per direction pair) and on
 *colours*. A namespace supplies the handful of element-wise operations it needs and the two places where
 libraries differ: how a 3-vector is split into components and how a scalar field is broadcast against a
-colour. numpy/torch/jax hold vectors and colours as arrays with a trailing axis of 3; Dr.Jit holds them as
-``Vector3f`` / ``Color3f`` whose components are ``Float`` arrays.
+colour. numpy/torch/jax hold vectors and colours as arrays with a trailing axis of 3 (:func:`namespace`);
+a backend with other array types subclasses :class:`BrdfOps` and passes its object to the maths (the
+Mitsuba backend's Dr.Jit namespace, ``pgc_mitsuba.ops``, holds ``Vector3f`` / ``Color3f`` values).
 
 Libraries are imported lazily, when a namespace is first requested.
 """
@@ -20,7 +21,7 @@ LUMINANCE = (0.212671, 0.715160, 0.072169)
 """Linear-sRGB luminance weights (Mitsuba's ``luminance``), used by the Disney sheen tint and lobe weights."""
 
 
-class ArrayOps:
+class BrdfOps:
     """Element-wise operations over one array library with a trailing colour/vector axis of 3."""
 
     name = "numpy"
@@ -62,7 +63,7 @@ class ArrayOps:
         return c[..., 0] * LUMINANCE[0] + c[..., 1] * LUMINANCE[1] + c[..., 2] * LUMINANCE[2]
 
 
-class TorchOps(ArrayOps):
+class TorchBrdfOps(BrdfOps):
     name = "torch"
 
     def maximum(self, x: Any, y: float) -> Any:
@@ -80,60 +81,27 @@ class TorchOps(ArrayOps):
         return self.m.as_tensor(value, dtype=like.dtype, device=like.device)
 
 
-class JaxOps(ArrayOps):
+class JaxBrdfOps(BrdfOps):
     name = "jax"
 
 
-class DrJitOps(ArrayOps):
-    """The same operations on Dr.Jit arrays (``Float`` fields, ``Vector3f`` directions, ``Color3f``)."""
-
-    name = "drjit"
-
-    def __init__(self, dr: Any, mi: Any) -> None:
-        super().__init__(dr)
-        self.dr, self.mi = dr, mi
-
-    def where(self, cond: Any, a: Any, b: Any) -> Any:
-        return self.dr.select(cond, a, b)
-
-    def split(self, v: Any) -> tuple[Any, Any, Any]:
-        return v.x, v.y, v.z
-
-    def expand(self, s: Any) -> Any:
-        return s
-
-    def param(self, value: Any, like: Any = None) -> Any:
-        """Python numbers become ``Float``, 3-sequences ``Color3f``; Dr.Jit arrays pass through."""
-        if isinstance(value, (int, float)):
-            return self.mi.Float(float(value))
-        if isinstance(value, (list, tuple)):
-            return self.mi.Color3f(*[float(v) for v in value])
-        return value
-
-    def luminance(self, c: Any) -> Any:
-        return c[0] * LUMINANCE[0] + c[1] * LUMINANCE[1] + c[2] * LUMINANCE[2]
+BACKENDS = ("numpy", "torch", "jax")
+"""The array libraries :func:`namespace` supplies."""
 
 
 @lru_cache(maxsize=None)
-def namespace(backend: str) -> Any:
-    """The operations of ``backend`` ("numpy", "torch", "jax" or "drjit"), importing its library."""
+def namespace(backend: str) -> BrdfOps:
+    """The operations of ``backend`` (one of :data:`BACKENDS`), importing its library."""
     if backend == "numpy":
         import numpy
 
-        return ArrayOps(numpy)
+        return BrdfOps(numpy)
     if backend == "torch":
         import torch
 
-        return TorchOps(torch)
+        return TorchBrdfOps(torch)
     if backend == "jax":
         import jax.numpy as jnp
 
-        return JaxOps(jnp)
-    if backend == "drjit":
-        from pgc_mitsuba.runtime import mitsuba
-
-        mi = mitsuba()
-        import drjit
-
-        return DrJitOps(drjit, mi)
-    raise PGCConfigError(f"unknown BRDF backend '{backend}'; use one of: numpy, torch, jax, drjit")
+        return JaxBrdfOps(jnp)
+    raise PGCConfigError(f"unknown BRDF backend '{backend}'; use one of: {', '.join(BACKENDS)}")

@@ -1,5 +1,6 @@
-"""Built-in implementations that need only numpy/scipy, registered through the entry point ``core``
-exactly like third-party plugins. Each area declares its specs in a ``specs_*.py`` module."""
+"""Built-in implementations of the core package, registered through the entry point ``core`` exactly like
+third-party plugins. Each area declares its specs in a ``specs_*.py`` module, with the optional modules an
+implementation needs in its ``requires`` (the reconstructors: pymeshlab and xatlas, ``pgc[meshlab]``)."""
 
 from pgc.registry import spec_plugin_hook
 

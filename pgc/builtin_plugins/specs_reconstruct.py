@@ -1,4 +1,6 @@
-"""Registration of the built-in reconstructors 'visual_hull' and 'mesh' (light: pgc core + pydantic only)."""
+"""Registration of the built-in reconstructors 'visual_hull' and 'mesh' (light: pgc core + pydantic only).
+
+Both finish their surface with :mod:`pgc.geometry.finish`, which needs pymeshlab and xatlas (``pgc[meshlab]``)."""
 
 from __future__ import annotations
 
@@ -34,7 +36,8 @@ class MeshFileOptions(FinishOptions):
         return v
 
 
-_REQ = ("pymeshlab", "xatlas", "scipy")
+_REQ = ("pymeshlab", "xatlas")
+"""What :mod:`pgc.geometry.finish` imports (numpy, scipy and trimesh are core dependencies)."""
 
 SPECS = [
     ImplementationSpec(
@@ -44,6 +47,5 @@ SPECS = [
     ImplementationSpec(
         role="reconstructor", name="mesh", factory="pgc.geometry.reconstructors:MeshFileReconstructor",
         description="a user's own scan or mesh (OBJ/PLY/glTF) aligned to the capture frame",
-        options="pgc.builtin_plugins.specs_reconstruct:MeshFileOptions", requires=_REQ + ("trimesh",),
-        extra="meshlab"),
+        options="pgc.builtin_plugins.specs_reconstruct:MeshFileOptions", requires=_REQ, extra="meshlab"),
 ]

@@ -9,6 +9,7 @@ import numpy as np
 from pgc.builtin_plugins.specs_reconstruct import MeshFileOptions, VisualHullOptions
 from pgc.errors import PGCDataError
 from pgc.events import Reporter
+from pgc.geometry.finish import finish
 from pgc.geometry.hull import SilhouetteField, check_views, hull_bounds, pixel_footprint, visual_hull
 from pgc.geometry.raster import rasterize
 from pgc.roles.reconstructor import Reconstruction, Reconstructor
@@ -19,8 +20,6 @@ class VisualHullReconstructor(Reconstructor):
     Options = VisualHullOptions
 
     def reconstruct(self, capture: Capture, reporter: Reporter | None = None) -> Reconstruction:
-        from pgc_meshlab.finish import finish
-
         opt = self.options
         reporter = reporter or Reporter.silent()
         t0 = time.perf_counter()
@@ -79,7 +78,6 @@ class MeshFileReconstructor(Reconstructor):
 
     def reconstruct(self, capture: Capture, reporter: Reporter | None = None) -> Reconstruction:
         from pgc.io.mesh import read_mesh
-        from pgc_meshlab.finish import finish
 
         opt = self.options
         reporter = reporter or Reporter.silent()

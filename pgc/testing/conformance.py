@@ -451,8 +451,193 @@ class ReconstructorConformance(_Suite):
             implementation.reconstruct(self._capture(1, empty_masks=False))
 
 
+# --------------------------------------------------------------------------------------- scene_renderer
+
+
+class SceneRendererConformance(_Suite):
+    """Contract of ``pgc.roles.scene_renderer.SceneRenderer`` on one Lambertian triangle parallel to the image
+    plane at depth 2 m under a constant environment: the mask is the fraction of sub-pixel centres inside the
+    projected triangle, the depth is 2 m, the segmentation is the garment where most samples hit it, the
+    albedo is the base colour, and a fully covered pixel's colour is ``albedo * L`` (nothing occludes the
+    environment, so every path's expected value is that)."""
+
+    ALBEDO = 0.5
+    RADIANCE = (1.0, 0.8, 0.6)
+    DEPTH = 2.0
+    CORNERS = ((4.3, 4.1), (20.2, 6.7), (8.9, 19.6))
+    """Pixel positions of the triangle's corners (no sub-pixel centre lies on an edge)."""
+    SAMPLES = 4
+    TOLERANCE = 0.03
+    """Relative error allowed on the mean colour of the fully covered pixels (16 spp, sampling noise)."""
+
+    @pytest.fixture
+    def camera(self):
+        from pgc.types import Camera
+
+        return Camera(K=np.array([[40.0, 0, 12], [0, 40.0, 12], [0, 0, 1]]), R=np.eye(3), t=np.zeros(3),
+                      width=24, height=24, name="front")
+
+    @pytest.fixture
+    def geometry(self, camera):
+        from pgc.synth.render import SceneGeometry
+        from pgc.types import Material, Mesh
+
+        pix = np.array([[u, v, 1.0] for u, v in self.CORNERS])
+        vertices = self.DEPTH * pix @ np.linalg.inv(camera.K).T
+        triangle = Mesh(vertices, np.array([[0, 2, 1]]), name="garment")
+        return SceneGeometry(np.zeros((0, 3)), np.zeros((0, 3), np.int64), triangle,
+                             Material("lambertian", {"base_color": [self.ALBEDO] * 3}))
+
+    def _expected_mask(self, camera) -> np.ndarray:
+        s = self.SAMPLES
+        off = (np.arange(s) + 0.5) / s
+        ys, xs = np.mgrid[0:camera.height, 0:camera.width].astype(np.float64)
+        oy, ox = np.meshgrid(off, off, indexing="ij")
+        px, py = xs[..., None] + ox.reshape(-1), ys[..., None] + oy.reshape(-1)
+        (x0, y0), (x1, y1), (x2, y2) = self.CORNERS
+        inside = np.ones(px.shape, bool)
+        for (ax, ay), (bx, by) in (((x0, y0), (x1, y1)), ((x1, y1), (x2, y2)), ((x2, y2), (x0, y0))):
+            inside &= (bx - ax) * (py - ay) - (by - ay) * (px - ax) > 0
+        return inside.mean(axis=2)
+
+    def test_ground_truth_layers_are_exact(self, implementation, camera, geometry):
+        from pgc.synth.render import LABEL_GARMENT
+        from pgc.types import Light
+
+        scene, labels = implementation.build_scene(geometry, Light(radiance=np.array(self.RADIANCE)))
+        layers = implementation.ground_truth_layers(scene, labels, geometry, camera, self.SAMPLES)
+        expected = self._expected_mask(camera)
+        assert expected.max() == 1.0 and expected[expected > 0].min() < 1.0  # inner and edge pixels exist
+        for key in ("mask", "depth", "garment_coverage"):
+            assert layers[key].shape == (24, 24) and layers[key].dtype == np.float32
+            assert np.all(np.isfinite(layers[key]))
+        assert layers["albedo"].shape == (24, 24, 3) and layers["segmentation"].dtype == np.uint8
+        # a float32 ray may land on the other side of an edge only within rounding: one sample at most
+        assert np.abs(layers["mask"] - expected).max() <= 1.0 / self.SAMPLES ** 2 + 1e-6
+        assert np.abs(layers["mask"] - expected).mean() < 2e-3
+        np.testing.assert_array_equal(layers["garment_coverage"], layers["mask"])
+        covered = layers["mask"] > 0
+        np.testing.assert_allclose(layers["depth"][covered], self.DEPTH, rtol=1e-5)
+        np.testing.assert_array_equal(layers["depth"][~covered], 0.0)
+        np.testing.assert_allclose(layers["albedo"][covered], self.ALBEDO, rtol=1e-6)
+        np.testing.assert_array_equal(layers["albedo"][~covered], 0.0)
+        np.testing.assert_array_equal(layers["segmentation"][expected > 0.55], LABEL_GARMENT)
+        np.testing.assert_array_equal(layers["segmentation"][expected < 0.45], 0)
+
+    def test_color_is_albedo_times_radiance(self, implementation, camera, geometry):
+        from pgc.types import Light
+
+        scene, _ = implementation.build_scene(geometry, Light(radiance=np.array(self.RADIANCE)))
+        color, alpha = implementation.render_color(scene, camera, 16, 3)
+        assert color.shape == (24, 24, 3) and alpha.shape == (24, 24)
+        assert np.all(np.isfinite(color)) and alpha.min() >= 0.0 and alpha.max() <= 1.0 + 1e-6
+        expected = np.pad(self._expected_mask(camera), 1, mode="edge")
+        near = np.stack([expected[1 + dy:25 + dy, 1 + dx:25 + dx] for dy in (-1, 0, 1) for dx in (-1, 0, 1)])
+        inner, outside = near.min(0) == 1.0, near.max(0) == 0.0  # away from the edges by a pixel
+        assert inner.sum() > 40 and outside.sum() > 300
+        np.testing.assert_allclose(alpha, 1.0, atol=1e-6)  # every ray ends on the triangle or the environment
+        np.testing.assert_allclose(color[inner].mean(axis=0), self.ALBEDO * np.array(self.RADIANCE),
+                                   rtol=self.TOLERANCE)
+        np.testing.assert_allclose(color[outside], np.broadcast_to(self.RADIANCE, (outside.sum(), 3)), rtol=1e-5)
+        again, _ = implementation.render_color(scene, camera, 16, 3)
+        np.testing.assert_array_equal(again, color)
+
+    def test_empty_scene_sees_the_light(self, implementation, camera):
+        from pgc.types import Light
+
+        scene, _ = implementation.build_scene(None, Light(radiance=np.array(self.RADIANCE)))
+        layers = implementation.ground_truth_layers(scene, {}, None, camera, 2)
+        for key, value in layers.items():
+            assert value.shape[:2] == (24, 24), key
+            np.testing.assert_array_equal(value, 0)
+        color, alpha = implementation.render_color(scene, camera, 4, 0)
+        np.testing.assert_allclose(alpha, 1.0, atol=1e-6)
+        np.testing.assert_allclose(color, np.broadcast_to(self.RADIANCE, (24, 24, 3)), rtol=1e-5)
+
+
+# ------------------------------------------------------------------------------------------- calibrator
+
+
+def textured_box_capture(views: int = 8, size: int = 192):
+    """A capture of a 0.8 m cube with a multi-scale solid noise texture (SIFT finds blobs on it) from
+    ``views`` cameras 20 degrees apart on an arc 2.2 m from its centre, with exact poses."""
+    from pgc.geometry.raster import rasterize
+    from pgc.geometry.testscene import look_at
+    from pgc.types import Capture, Mesh, View
+
+    n, half = 8, 0.4
+    g = np.linspace(-half, half, n + 1)
+    vertices, faces = [], []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            u, v = np.meshgrid(g, g, indexing="ij")
+            p = np.zeros(u.shape + (3,))
+            p[..., axis], p[..., (axis + 1) % 3], p[..., (axis + 2) % 3] = sign * half, u, v
+            idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1) + sum(len(x) for x in vertices)
+            q = np.stack([idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]], -1).reshape(-1, 4)
+            f = np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])
+            faces.append(f if sign > 0 else f[:, ::-1])
+            vertices.append(p.reshape(-1, 3))
+    box = Mesh(np.concatenate(vertices), np.concatenate(faces))
+    rng = np.random.default_rng(0)
+    freq = rng.normal(size=(3, 16, 3))
+    freq *= (2 * np.pi / rng.uniform(0.04, 0.15, size=(3, 16)))[..., None] / np.linalg.norm(freq, axis=-1,
+                                                                                             keepdims=True)
+    phase = rng.uniform(0, 2 * np.pi, (3, 16))
+    out = []
+    for i in range(views):
+        a, e = np.radians(20.0 * i), np.radians(25.0)
+        centre = 2.2 * np.array([np.cos(e) * np.sin(a), np.sin(e), np.cos(e) * np.cos(a)])
+        cam = look_at(centre, np.zeros(3), size, size, 40.0, f"v{i}")
+        r = rasterize(cam, box.vertices, box.faces)
+        hit = r.face_id >= 0
+        pts = np.einsum("nk,nkj->nj", r.bary[hit], box.vertices[box.faces[r.face_id[hit]]])
+        image = np.full((size, size, 3), 0.5, np.float32)
+        image[hit] = np.stack([0.5 + 0.45 * np.tanh(4 * np.sin(pts @ freq[c].T + phase[c]).mean(1))
+                               for c in range(3)], -1)
+        out.append(View(cam, image, hit.astype(np.float32), hit.astype(np.uint8)))
+    return Capture(out)
+
+
+class CalibratorConformance(_Suite):
+    """Contract of ``pgc.roles.calibrator.Calibrator`` on a textured cube seen by 8 exactly posed cameras:
+    the output has the same views (names, order, images, intrinsics), finite poses that stay within 2
+    degrees and 5 cm of the exact ones; fewer than 3 views raise :class:`PGCDataError`."""
+
+    MAX_ROTATION_DEG = 2.0
+    MAX_SHIFT_M = 0.05
+
+    @pytest.fixture(scope="class")
+    @classmethod
+    def capture(cls):
+        return textured_box_capture()
+
+    def test_same_views_and_finite_poses_near_the_truth(self, implementation, capture):
+        out = implementation.calibrate(capture)
+        assert [v.camera.name for v in out.capture.views] == [v.camera.name for v in capture.views]
+        for before, after in zip(capture.views, out.capture.views):
+            a, b = before.camera, after.camera
+            assert np.all(np.isfinite(b.R)) and np.all(np.isfinite(b.t))
+            np.testing.assert_array_equal(b.K, a.K)
+            assert (b.width, b.height) == (a.width, a.height)
+            np.testing.assert_array_equal(after.image, before.image)
+            np.testing.assert_allclose(b.R @ b.R.T, np.eye(3), atol=1e-6)
+            angle = np.degrees(np.arccos(np.clip((np.trace(a.R.T @ b.R) - 1) / 2, -1.0, 1.0)))
+            assert angle < self.MAX_ROTATION_DEG, (a.name, angle)
+            assert np.linalg.norm(b.center - a.center) < self.MAX_SHIFT_M, a.name
+        assert all(np.all(np.isfinite(np.asarray(v, float))) for v in out.figures.values()
+                   if isinstance(v, (int, float)))
+
+    def test_too_few_views_raise(self, implementation, capture):
+        from dataclasses import replace
+
+        with pytest.raises(PGCDataError):
+            implementation.calibrate(replace(capture, views=capture.views[:2]))
+
+
 SUITES = {"filter": FilterConformance, "metric": MetricConformance, "brdf": BRDFConformance,
           "simulator": SimulatorConformance, "splat_renderer": SplatRendererConformance,
           "albedo_estimator": AlbedoEstimatorConformance, "pbr_renderer": PBRRendererConformance,
-          "reconstructor": ReconstructorConformance}
+          "reconstructor": ReconstructorConformance, "scene_renderer": SceneRendererConformance,
+          "calibrator": CalibratorConformance}
 """Role -> its conformance suite."""

@@ -1,4 +1,4 @@
-"""``calibrate``: re-estimate the camera poses of a capture from its images with COLMAP (CPU).
+"""The ``calibrator`` role on COLMAP: re-estimate the camera poses of a capture from its images with COLMAP (CPU).
 
 Steps (pycolmap 4.2, CPU): SIFT ``extract_features`` with the capture's intrinsics written into the
 database (PINHOLE), ``match_exhaustive``, ``incremental_mapping`` with focal length, principal point and
@@ -18,8 +18,10 @@ import numpy as np
 
 from pgc.errors import PGCDataError
 from pgc.events import Reporter
+from pgc.roles.calibrator import Calibration, Calibrator
 from pgc.types import Camera, Capture, View
 from pgc_colmap.reconstruct import extract_and_match, quiet_colmap
+from pgc_colmap.specs_calibrate import ColmapCalibratorOptions
 from pgc_colmap.workspace import write_images
 
 
@@ -55,7 +57,7 @@ def _set_intrinsics(db_path: Path, cameras: dict[str, Camera]) -> None:
         db.close()
 
 
-def calibrate(capture: Capture, max_features: int = 4096, peak_threshold: float = 0.002,
+def calibrate(capture: Capture, max_features: int = 4096, peak_threshold: float = 0.002, min_inliers: int = 12,
               reporter: Reporter | None = None) -> tuple[Capture, dict[str, Any]]:
     """The capture with refined camera poses, and figures (registered views, reprojection error, pose
     changes: mean/max rotation in degrees and centre shift in metres)."""
@@ -68,7 +70,7 @@ def calibrate(capture: Capture, max_features: int = 4096, peak_threshold: float 
     with tempfile.TemporaryDirectory(prefix="pgc-calibrate-") as tmp, reporter.stage("calibrate"):
         root = Path(tmp)
         names = write_images(capture, root / "images")
-        db_path = extract_and_match(capture, root, names, max_features, peak_threshold, min_inliers=12)
+        db_path = extract_and_match(capture, root, names, max_features, peak_threshold, min_inliers)
         ours = {n: v.camera for n, v in zip(names, capture.views)}
         _set_intrinsics(db_path, ours)
         opts = pycolmap.IncrementalPipelineOptions()
@@ -115,3 +117,12 @@ def calibrate(capture: Capture, max_features: int = 4096, peak_threshold: float 
                "centre_change_m_mean": float(np.mean(shift)), "centre_change_m_max": float(np.max(shift)),
                "similarity_scale": s}
     return replace(capture, views=views), figures
+
+
+class ColmapCalibrator(Calibrator):
+    Options = ColmapCalibratorOptions
+
+    def calibrate(self, capture: Capture, reporter: Reporter | None = None) -> Calibration:
+        opt = self.options
+        refined, figures = calibrate(capture, opt.max_features, opt.sift_peak_threshold, opt.min_inliers, reporter)
+        return Calibration(refined, figures)

@@ -24,6 +24,7 @@ import numpy as np
 from pgc.errors import PGCDataError
 from pgc.events import Reporter
 from pgc.geometry.dense import dense_points, hull_fill_points, poisson_depth_for, trim_outside
+from pgc.geometry.finish import finish
 from pgc.geometry.hull import _axis_centre
 from pgc.geometry.stereo import depth_normals, select_neighbours
 from pgc.roles.reconstructor import Reconstruction, Reconstructor
@@ -173,7 +174,6 @@ class ColmapReconstructor(Reconstructor):
         import pycolmap
 
         from pgc.io.mesh import read_mesh
-        from pgc_meshlab.finish import finish
 
         opt = self.options
         reporter = reporter or Reporter.silent()

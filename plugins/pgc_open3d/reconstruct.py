@@ -1,5 +1,5 @@
 """The ``open3d`` reconstructor: dense oriented points (pgc.geometry.dense) -> Open3D screened Poisson ->
-trim (low density, outside the visual hull) -> shared finishing (pgc_meshlab.finish)."""
+trim (low density, outside the visual hull) -> shared finishing (pgc.geometry.finish)."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import numpy as np
 
 from pgc.events import Reporter
 from pgc.geometry.dense import dense_points, poisson_depth_for, trim_outside
+from pgc.geometry.finish import finish
 from pgc.roles.reconstructor import Reconstruction, Reconstructor
 from pgc.types import Capture
 from pgc_open3d.specs_reconstruct import Open3DReconstructorOptions
@@ -31,8 +32,6 @@ class Open3DReconstructor(Reconstructor):
     Options = Open3DReconstructorOptions
 
     def reconstruct(self, capture: Capture, reporter: Reporter | None = None) -> Reconstruction:
-        from pgc_meshlab.finish import finish
-
         opt = self.options
         reporter = reporter or Reporter.silent()
         t0 = time.perf_counter()

@@ -1,7 +1,8 @@
 """Shared finishing steps of every reconstructor (pymeshlab + xatlas): clean, isotropic remesh to a target
 vertex count, garment labels by multi-view voting, UV unwrap; and the garment sub-mesh.
 
-All positions in world metres; faces counter-clockwise seen from outside.
+All positions in world metres; faces counter-clockwise seen from outside. pymeshlab and xatlas (the extra
+``pgc[meshlab]``) are imported when a step runs; a missing one raises :class:`pgc.errors.PGCPluginError`.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from pgc.errors import PGCDataError
+from pgc.errors import PGCDataError, PGCPluginError
 from pgc.events import Reporter
 from pgc.geometry.options import FinishOptions
 from pgc.geometry.labels import edge_components, face_adjacency, vote_face_labels
@@ -19,8 +20,18 @@ from pgc.geometry.metrics import topology_report
 from pgc.types import Mesh, View
 
 
+def _import(module: str) -> Any:
+    """``module`` (pymeshlab or xatlas), or a :class:`PGCPluginError` naming the extra that installs it."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        raise PGCPluginError(f"mesh finishing needs {module} ({exc}); install with: pip install 'pgc[meshlab]'") from exc
+
+
 def _meshset(vertices: np.ndarray, faces: np.ndarray):
-    import pymeshlab
+    pymeshlab = _import("pymeshlab")
 
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(vertices, np.float64),
@@ -126,7 +137,7 @@ def remesh(vertices: np.ndarray, faces: np.ndarray, target_vertices: int, iterat
            passes: int = 3, tolerance: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
     """Isotropic explicit remeshing to about ``target_vertices`` (within ``tolerance``, up to ``passes``
     passes that rescale the edge length by sqrt(V / target)), then sliver removal and repair."""
-    import pymeshlab
+    pymeshlab = _import("pymeshlab")
 
     area = Mesh(vertices, faces).face_areas().sum()
     # An equilateral mesh with V vertices has about 2V faces of area sqrt(3)/4 L^2.
@@ -178,8 +189,7 @@ def remove_slivers(vertices: np.ndarray, faces: np.ndarray, min_angle_deg: float
 
 def unwrap(vertices: np.ndarray, faces: np.ndarray, resolution: int = 1024, padding: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """xatlas UV atlas: ``uv`` (T, 2) float32 in [0, 1] (v up) and ``face_uv`` (F, 3) int64, face order kept."""
-    import xatlas
-
+    xatlas = _import("xatlas")
     atlas = xatlas.Atlas()
     atlas.add_mesh(np.asarray(vertices, np.float32), np.asarray(faces, np.uint32))
     pack = xatlas.PackOptions()

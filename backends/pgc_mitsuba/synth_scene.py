@@ -1,0 +1,142 @@
+"""The ``scene_renderer`` role on Mitsuba 3 (LLVM variant, CPU): path-traced colour and exact ray-cast
+ground truth of a synthetic scene (:class:`pgc.synth.render.SceneGeometry`).
+
+Colour: the ``path`` integrator, box pixel filter (a pixel's value is the mean radiance over its square, so
+edges blend the person with the background by exact coverage), the named sampler seeded per call
+(Mitsuba's LLVM rendering is deterministic for a fixed seed). Ground truth: one ``ray_intersect`` of the
+rays of :func:`pgc.synth.render.subpixel_rays`, reduced by :func:`pgc.synth.render.layers_from_samples`.
+
+The garment's BSDF is :func:`pgc_mitsuba.bsdfs.material_to_bsdf` (the shared BRDF evaluation), wrapped in
+Mitsuba's ``normalmap`` when the fabric has a weave; the body is Lambertian (Mitsuba ``diffuse``); fibres
+are a ``linearcurve`` shape with the garment's BRDF in the fibres' colour.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from typing import Any
+
+import numpy as np
+
+from pgc.errors import PGCDataError
+from pgc.roles.scene_renderer import SceneRenderer
+from pgc.synth.fabrics import Fibres
+from pgc.synth.render import (LABEL_BODY, LABEL_GARMENT, SceneGeometry, empty_layers, layers_from_samples,
+                              subpixel_rays)
+from pgc.types import Camera, Light, Material
+from pgc_mitsuba.bsdfs import material_to_bsdf
+from pgc_mitsuba.runtime import mesh_to_mitsuba, mitsuba
+from pgc_mitsuba.scene import emitter_dict
+from pgc_mitsuba.specs_scene import MitsubaSceneOptions
+
+
+def sensor_dict(camera: Camera, spp: int, sampler: str = "independent") -> dict[str, Any]:
+    """A Mitsuba perspective sensor equivalent to the OpenCV ``camera`` (square pixels required) with
+    ``spp`` samples of the Mitsuba ``sampler`` per pixel."""
+    mi = mitsuba()
+    if abs(camera.fx - camera.fy) > 1e-6 * camera.fx or abs(camera.K[0, 1]) > 1e-9:
+        raise PGCDataError(f"camera '{camera.name}': rendering needs square pixels and no skew "
+                           f"(fx={camera.fx}, fy={camera.fy})")
+    w, h = camera.width, camera.height
+    c2w = np.eye(4)
+    c2w[:3, 0], c2w[:3, 1], c2w[:3, 2] = -camera.R[0], -camera.R[1], camera.R[2]  # Mitsuba: x left, y up
+    c2w[:3, 3] = camera.center
+    return {"type": "perspective", "fov_axis": "x", "fov": float(np.degrees(2 * np.arctan(w / (2 * camera.fx)))),
+            "principal_point_offset_x": float((camera.K[0, 2] - w / 2) / w),
+            "principal_point_offset_y": float((camera.K[1, 2] - h / 2) / h),
+            "near_clip": 0.01, "far_clip": 100.0,
+            "to_world": mi.ScalarTransform4f(c2w.tolist()),
+            "film": {"type": "hdrfilm", "width": w, "height": h, "rfilter": {"type": "box"}, "pixel_format": "rgba"},
+            "sampler": {"type": sampler, "sample_count": int(spp)}}
+
+
+def garment_bsdf(material: Material, normal_map: np.ndarray | None) -> dict[str, Any]:
+    """The garment's BSDF scene-dict, wrapped in ``normalmap`` when there is a normal map (v up)."""
+    bsdf = material_to_bsdf(material, two_sided=True)
+    if normal_map is None:
+        return bsdf
+    mi = mitsuba()
+    nm = mi.Bitmap(np.ascontiguousarray(np.asarray(normal_map, np.float32)[::-1]))  # rows: v up -> Mitsuba
+    return {"type": "normalmap", "normalmap": {"type": "bitmap", "bitmap": nm, "raw": True,
+                                               "filter_type": "bilinear"}, "bsdf": bsdf}
+
+
+def fibre_shape(fibres: Fibres, garment_vertices: np.ndarray, garment_faces: np.ndarray,
+                material: Material) -> Any:
+    """A Mitsuba ``linearcurve`` shape of the fibres on the given garment vertices."""
+    mi = mitsuba()
+    pts = fibres.control_points(garment_vertices, garment_faces)
+    radius = np.full(pts.shape[:2] + (1,), fibres.radius)
+    radius[:, -1] *= 0.5  # tapered tips
+    rows = np.concatenate([pts, radius], axis=-1)
+    text = "\n\n".join("\n".join(" ".join(f"{x:.7g}" for x in p) for p in curve) for curve in rows)
+    fibre_material = Material(material.brdf, dict(material.params, base_color=fibres.color.tolist()))
+    fd, path = tempfile.mkstemp(suffix=".txt", prefix="pgc_fibres_")
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text + "\n")
+        return mi.load_dict({"type": "linearcurve", "filename": path, "bsdf": material_to_bsdf(fibre_material)})
+    finally:
+        os.unlink(path)
+
+
+class MitsubaSceneRenderer(SceneRenderer):
+    Options = MitsubaSceneOptions
+
+    def build_scene(self, geometry: SceneGeometry | None, light: Light) -> tuple[Any, dict[str, int]]:
+        mi = mitsuba()
+        scene: dict[str, Any] = {"type": "scene", "integrator": {"type": "path", "max_depth": self.options.max_depth},
+                                 "emitter": emitter_dict(light)}
+        labels: dict[str, int] = {}
+        if geometry is not None:
+            g = geometry.garment
+            if len(geometry.body_faces):
+                scene["body"] = mesh_to_mitsuba(geometry.body_vertices, geometry.body_faces, name="body",
+                                                vertex_normals=True,
+                                                bsdf=mi.load_dict({"type": "diffuse", "reflectance": {
+                                                    "type": "rgb", "value": list(geometry.skin_albedo)}}))
+            scene["garment"] = mesh_to_mitsuba(g.vertices, g.faces, name="garment", uv=g.uv, face_uv=g.face_uv,
+                                               vertex_normals=True,
+                                               bsdf=mi.load_dict(garment_bsdf(geometry.material, geometry.normal_map)))
+            labels = {"body": LABEL_BODY, "garment": LABEL_GARMENT}
+            if geometry.fibres is not None:
+                scene["fibres"] = fibre_shape(geometry.fibres, g.vertices, g.faces, geometry.material)
+                labels["fibres"] = LABEL_GARMENT
+        return mi.load_dict(scene), labels
+
+    def render_color(self, scene: Any, camera: Camera, spp: int, seed: int, sampler: str = "independent"
+                     ) -> tuple[np.ndarray, np.ndarray]:
+        """Linear RGB and the film's alpha (Mitsuba's ``rgba`` film: 1 for rays ending on a shape or an
+        environment emitter)."""
+        mi = mitsuba()
+        sensor = mi.load_dict(sensor_dict(camera, spp, sampler))
+        out = np.array(mi.render(scene, sensor=sensor, spp=int(spp), seed=int(seed)), dtype=np.float32)
+        return np.ascontiguousarray(out[..., :3]), np.ascontiguousarray(out[..., 3])
+
+    def ground_truth_layers(self, scene: Any, labels: dict[str, int], geometry: SceneGeometry | None,
+                            camera: Camera, samples: int = 4) -> dict[str, np.ndarray]:
+        import drjit as dr
+
+        mi = mitsuba()
+        if geometry is None:
+            return empty_layers(camera)
+        o, d = subpixel_rays(camera, samples)
+        o, d = o.reshape(-1, 3), d.reshape(-1, 3)
+        ray = mi.Ray3f(mi.Point3f(*[mi.Float(o[:, k].astype(np.float32)) for k in range(3)]),
+                       mi.Vector3f(*[mi.Float(d[:, k].astype(np.float32)) for k in range(3)]))
+        si = scene.ray_intersect(ray)
+        dr.eval(si.t, si.uv, si.shape)  # one kernel; the conversions below would otherwise re-trace the rays
+        valid = np.array(si.is_valid(), dtype=bool)
+        label = np.zeros(len(o), np.uint8)
+        for shape in scene.shapes():
+            hit = np.array(si.shape == mi.ShapePtr(shape), dtype=bool) & valid
+            label[hit] = labels.get(shape.id(), LABEL_BODY)
+        t = np.array(si.t, dtype=np.float64)
+        uv = np.stack([np.array(si.uv.x), np.array(si.uv.y)], axis=1)
+        z = np.where(valid, t * (d @ camera.R[2]), 0.0)
+        on_fibre = None
+        if geometry.fibres is not None:
+            fibre_ptr = [s for s in scene.shapes() if s.id() == "fibres"]
+            on_fibre = np.array(si.shape == mi.ShapePtr(fibre_ptr[0]), dtype=bool) & valid
+        return layers_from_samples(geometry, camera, samples, valid, label, z, uv, on_fibre)

@@ -1,1 +1,0 @@
-"""meshlab plugin for PGC. Keep this file light (no meshlab import)."""
