@@ -8,9 +8,20 @@ per-pixel reference (pgc.splats.reference) runs only on a tiny scene (it loops o
 each backend's time is also a ratio to it and its error is the largest absolute difference to it. At the
 larger sizes the error is the largest difference to the torch image. ``--fit`` also fits splats on a capture
 (``--capture DIR``, e.g. the output of ``pgc synth OUT --preset default``, or the test body at 256 px) and
-records the held-out PSNR against time. Records (JSON) follow DESIGN.md's benchmark format.
+records the held-out PSNR against time. Records (JSON): role, implementation, preset, settings, seconds,
+errors, versions.
+
+The kernel table (``--kernel-sizes``, ``--kernel-counts``; default 256 px, 50k Gaussians) times one view of
+the torch renderer's paths side by side: "fused" (one compiled call each way), "cpp" (torch projection and
+binning, compiled compositing) and the JAX renderer's forward+backward; it reports Gaussian-pixel pairs per
+second (pairs inside the footprint boxes, counted by the fused kernel) and, from the same run, this machine's
+float FMA peak and exp throughput (compiled loops with the kernel's flags) and torch's sgemm GFLOP/s, so the
+kernel's FLOP rate (FORWARD_FLOPS / BACKWARD_FLOPS per pair) shows as a fraction of them. Times there are CPU
+seconds (the machine is shared; wall seconds are recorded too); the default is one kernel thread, so idle
+OpenMP spinning does not count as work.
 
     python benchmarks/bench_splat.py [--sizes 128 256 512] [--counts 10000 50000 200000] [--fit] [--out FILE]
+    python benchmarks/bench_splat.py --sizes --kernel-sizes 256 --kernel-counts 10000 50000 --threads 1
 """
 
 from __future__ import annotations
@@ -60,9 +71,9 @@ def torch_backward(renderer, world, camera):
     import torch
 
     from pgc_torch.splat.binding import quat_to_rotmat
-    from pgc_torch.splat.renderer import single_threaded_torch
+    from pgc_torch.threads import torch_threads
 
-    @single_threaded_torch()
+    @torch_threads(1)
     def run() -> None:
         p = [torch.tensor(np.asarray(x), dtype=torch.float32, requires_grad=True)
              for x in (world.means, world.quats, world.scales, world.opacities, world.sh)]
@@ -100,6 +111,123 @@ def jax_backward(renderer, world, camera):
 
 
 BACKWARD = {"torch": torch_backward, "jax": jax_backward}
+
+FORWARD_FLOPS = 50
+"""Floating-point operations per pixel-Gaussian pair of the fused forward (power 10, exp 26, compositing 14)."""
+BACKWARD_FLOPS = 110
+"""Per pair of the fused backward (the forward's alpha again, transmittance restore, 10 gradient sums)."""
+
+
+def sgemm_flops(threads: int, n: int = 1024, repeats: int = 5) -> float:
+    """torch float32 matrix-multiply FLOP per CPU-second on ``threads`` threads (best of ``repeats``)."""
+    import torch
+
+    old = torch.get_num_threads()
+    torch.set_num_threads(threads)
+    try:
+        a, b = torch.randn(n, n), torch.randn(n, n)
+        a @ b
+        best = float("inf")
+        for _ in range(repeats):
+            start = time.process_time()
+            a @ b
+            best = min(best, time.process_time() - start)
+    finally:
+        torch.set_num_threads(old)
+    return 2.0 * n ** 3 / best * threads
+
+
+def kernel_benchmarks(args, reg, env) -> list[dict[str, Any]]:
+    """fused vs cpp vs JAX on one view, pair throughput and its fraction of the measured machine peaks."""
+    import torch
+
+    from pgc_torch.splat import fused
+    from pgc_torch.splat.binding import quat_to_rotmat
+    from pgc_torch.splat.rasterizer import rasterize
+    from pgc_torch.threads import torch_threads
+
+    peaks = fused.machine_peaks(args.threads)
+    peaks["sgemm_flops"] = sgemm_flops(args.threads)
+    print(f"  machine ({args.threads} threads, per second of CPU time of each): FMA peak "
+          f"{peaks['fma_flops'] / 1e9:.1f} GFLOP/s, exp {peaks['exp_per_s'] / 1e9:.2f} G/s, torch sgemm "
+          f"{peaks['sgemm_flops'] / 1e9:.1f} GFLOP/s")
+    known = {i.name: i for i in reg.list("splat_renderer")}
+    jax_renderer = known["jax"].create() if "jax" in known and known["jax"].available else None
+    records, rows = [], []
+    for size in args.kernel_sizes:
+        for count in args.kernel_counts:
+            world, camera = surface_scene(count, size)
+            label = f"{size}px/{count // 1000}k"
+            rot = quat_to_rotmat(torch.tensor(np.asarray(world.quats), dtype=torch.float64)).float()
+            base = [torch.tensor(np.asarray(x), dtype=torch.float32) for x in
+                    (world.means, world.scales, world.opacities, world.sh)]
+            stats = fused.render_stats(base[0], rot, *base[1:], camera, count=world.sh.shape[1],
+                                       threads=args.threads)
+
+            def forward(backend: str):
+                @torch_threads(1)
+                def run() -> None:
+                    with torch.no_grad():
+                        rasterize(base[0], rot, *base[1:], camera, backend=backend, threads=args.threads)
+                return run
+
+            def backward(backend: str):
+                @torch_threads(1)
+                def run() -> None:
+                    p = [x.clone().requires_grad_() for x in (base[0], rot, *base[1:])]
+                    color, alpha, _ = rasterize(*p, camera, backend=backend, threads=args.threads)
+                    (color.sum() + alpha.sum()).backward()
+                return run
+
+            measured = {}
+            for backend in ("fused", "cpp"):
+                measured[backend] = (min_time(forward(backend), args.repeats),
+                                     min_time(backward(backend), args.repeats))
+            if jax_renderer is not None:
+                measured["jax"] = ((float("nan"), float("nan")),
+                                   min_time(BACKWARD["jax"](jax_renderer, world, camera), args.repeats))
+            (f_fused, fc_fused), (b_fused, bc_fused) = measured["fused"]
+            for name, ((fwd, fwd_cpu), (fwdbwd, fwdbwd_cpu)) in measured.items():
+                # throughput per second of the cores' time: CPU seconds of all threads / threads
+                fwd_rate = stats["pairs"] / (fwd_cpu / args.threads)
+                bwd_cpu = fwdbwd_cpu - fwd_cpu
+                bwd_rate = stats["pairs"] / (bwd_cpu / args.threads) if bwd_cpu > 0 else float("nan")
+                figures = {"pairs": stats["pairs"], "pairs_per_s_forward": fwd_rate, "pairs_per_s_backward": bwd_rate,
+                           "forward_fraction_of_sgemm": fwd_rate * FORWARD_FLOPS / peaks["sgemm_flops"],
+                           "forward_fraction_of_fma_peak": fwd_rate * FORWARD_FLOPS / peaks["fma_flops"],
+                           "backward_fraction_of_fma_peak": bwd_rate * BACKWARD_FLOPS / peaks["fma_flops"],
+                           "exp_fraction_forward": fwd_rate / peaks["exp_per_s"],
+                           "fwdbwd_cpu_ratio_to_fused": fwdbwd_cpu / bc_fused, "fwdbwd_wall_ratio_to_fused":
+                           fwdbwd / b_fused, "seconds_cpu": fwd_cpu, "seconds_forward_backward_cpu": fwdbwd_cpu}
+                records.append({"role": "splat_renderer", "implementation": f"torch/{name}" if name != "jax" else "jax",
+                                "preset": label, "settings": {"size": size, "gaussians": count,
+                                                              "threads": args.threads},
+                                "seconds": fwd, "seconds_forward_backward": fwdbwd, "errors": figures,
+                                "machine": peaks, "versions": env})
+                rows.append({"scene": label, "path": name, "fwd cpu ms": f"{1e3 * fwd_cpu:.1f}",
+                             "fwd+bwd cpu ms": f"{1e3 * fwdbwd_cpu:.1f}",
+                             "fwd+bwd / fused": f"{fwdbwd_cpu / bc_fused:.2f}",
+                             "wall fwd / fwd+bwd ms": f"{1e3 * fwd:.0f} / {1e3 * fwdbwd:.0f}",
+                             "fwd Mpair/s": f"{fwd_rate / 1e6:.0f}", "bwd Mpair/s": f"{bwd_rate / 1e6:.0f}",
+                             "fwd % sgemm": f"{100 * figures['forward_fraction_of_sgemm']:.1f}",
+                             "fwd % FMA peak": f"{100 * figures['forward_fraction_of_fma_peak']:.1f}"})
+    print_table(rows, ["scene", "path", "fwd cpu ms", "fwd+bwd cpu ms", "fwd+bwd / fused", "wall fwd / fwd+bwd ms",
+                       "fwd Mpair/s", "bwd Mpair/s", "fwd % sgemm", "fwd % FMA peak"])
+    return records
+
+
+def min_time(fn, repeats: int) -> tuple[float, float]:
+    """Fastest wall and fastest CPU seconds (this process, all threads) of ``repeats`` calls after a warm-up.
+
+    On a shared machine the wall clock counts time other processes hold the cores; CPU seconds do not.
+    """
+    fn()
+    wall, cpu = float("inf"), float("inf")
+    for _ in range(repeats):
+        start, start_cpu = time.perf_counter(), time.process_time()
+        fn()
+        wall, cpu = min(wall, time.perf_counter() - start), min(cpu, time.process_time() - start_cpu)
+    return wall, cpu
 
 
 def renderer_benchmarks(args, reg, env) -> list[dict[str, Any]]:
@@ -185,10 +313,13 @@ def fit_benchmark(args, reg, env) -> list[dict[str, Any]]:
 
 def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sizes", type=int, nargs="+", default=[128, 256, 512])
+    parser.add_argument("--sizes", type=int, nargs="*", default=[128, 256, 512])
     parser.add_argument("--counts", type=int, nargs="+", default=[10000, 50000, 200000])
     parser.add_argument("--backends", nargs="+", default=["torch", "jax"])
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--kernel-sizes", type=int, nargs="*", default=[256])
+    parser.add_argument("--kernel-counts", type=int, nargs="*", default=[50000])
+    parser.add_argument("--threads", type=int, default=1, help="kernel threads of the kernel table")
     parser.add_argument("--fit", action="store_true", help="also measure the fit's time-to-PSNR curve")
     parser.add_argument("--fit-backends", nargs="+", default=["torch"])
     parser.add_argument("--fit-budget", type=float, default=420.0)
@@ -202,7 +333,9 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
 
     reg = default_registry()
     env = package_versions(("pgc", "numpy", "torch", "jax", "jaxlib"))
-    records = renderer_benchmarks(args, reg, env)
+    records = kernel_benchmarks(args, reg, env)
+    if args.sizes:
+        records += renderer_benchmarks(args, reg, env)
     if args.fit:
         records += fit_benchmark(args, reg, env)
     Path(args.out).write_text(json.dumps(records, indent=1, default=float) + "\n")

@@ -11,7 +11,7 @@ from pgc.types import Camera, GaussianSet, WorldGaussians
 
 torch = pytest.importorskip("torch")
 
-from pgc_torch.splat import kernel  # noqa: E402
+from pgc_torch.splat import fused, kernel  # noqa: E402
 from pgc_torch.splat.binding import bind, quat_to_rotmat  # noqa: E402
 from pgc_torch.splat.rasterizer import rasterize  # noqa: E402
 from pgc_torch.splat.renderer import TorchSplatRenderer  # noqa: E402
@@ -195,7 +195,7 @@ def test_registered_and_built_through_the_registry():
     from pgc.registry import default_registry
 
     renderer = default_registry().create("splat_renderer", "torch", {"compositor": "auto"})
-    assert isinstance(renderer, TorchSplatRenderer) and renderer.compositor == "cpp"
+    assert isinstance(renderer, TorchSplatRenderer) and renderer.compositor == "fused"
 
 
 def test_kernel_build_failure_is_reported_and_auto_falls_back(tmp_path, monkeypatch):
@@ -203,6 +203,8 @@ def test_kernel_build_failure_is_reported_and_auto_falls_back(tmp_path, monkeypa
     monkeypatch.setenv("CXX", str(tmp_path / "no-such-compiler"))
     with pytest.raises(kernel.KernelUnavailable):
         kernel.build()
+    monkeypatch.setattr(fused, "available", lambda: False)
+    assert TorchSplatRenderer({"compositor": "auto"}).compositor == "cpp"
     monkeypatch.setattr(kernel, "available", lambda: False)
     assert TorchSplatRenderer({"compositor": "auto"}).compositor == "torch"
 

@@ -11,9 +11,11 @@ from pgc.registry import ImplementationSpec
 
 
 class TorchSplatOptions(Options):
-    compositor: Literal["auto", "cpp", "torch"] = Field(
-        "auto", description="compositing path: 'cpp' (compiled OpenMP kernel, built once and cached), "
-                            "'torch' (vectorised pure torch, slow; cross-check), 'auto' (cpp if it builds)")
+    compositor: Literal["auto", "fused", "cpp", "torch"] = Field(
+        "auto", description="rendering path: 'fused' (projection, SH, binning, compositing and their backward in "
+                            "one compiled SIMD/OpenMP kernel), 'cpp' (torch projection, compiled compositing "
+                            "kernel), 'torch' (vectorised pure torch compositing, slow; cross-check), 'auto' "
+                            "(fused if it builds, else cpp, else torch); kernels are built once and cached")
     tile_size: int = Field(16, ge=4, le=64, description="tile edge in pixels for binning")
     threads: int = Field(0, ge=0, description="kernel threads; 0 = all CPU cores")
     near: float = Field(0.01, gt=0.0, description="near plane (metres): Gaussians with camera z below are culled")

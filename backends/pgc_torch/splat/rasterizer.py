@@ -1,8 +1,9 @@
 """Differentiable rasterisation in torch: EWA projection (float64), tile binning, depth-ordered compositing.
 
-Compositing runs in the compiled kernel (:mod:`.kernel`, forward and backward) or, as a fallback and
-cross-check, in vectorised torch per tile. Both follow the contract of pgc/splats/projection.py and
-pgc/splats/reference.py exactly.
+Backends: ``"fused"`` runs everything (projection, SH, binning, compositing and their backward) in one
+compiled kernel (:mod:`.fused`); ``"cpp"`` projects and bins in torch and composites in the compiled kernel
+(:mod:`.kernel`, forward and backward); ``"torch"`` composites in vectorised torch per tile (fallback and
+cross-check). All follow the contract of pgc/splats/projection.py and pgc/splats/reference.py exactly.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from pgc.splats.projection import ALPHA_MAX, ALPHA_MIN, DILATION, MAX_SCALE, T_M
 from pgc.splats.sh import sh_basis_terms
 from pgc.types import Camera
 
-from . import kernel
+from . import fused, kernel
 
 
 @dataclass
@@ -201,10 +202,14 @@ def composite(screen: Screen, bins: Bins, background: torch.Tensor, height: int,
     elif backend == "torch":
         color, alpha, dsum = _composite_torch(s, bins, background.to(screen.means2d.dtype), height, width, tile)
     else:
-        raise ValueError(f"unknown compositing backend '{backend}' (use 'cpp' or 'torch')")
+        raise ValueError(f"unknown compositing backend '{backend}' (use 'fused', 'cpp' or 'torch')")
+    return color, alpha, expected_depth(dsum, alpha)
+
+
+def expected_depth(dsum: torch.Tensor, alpha: torch.Tensor) -> torch.Tensor:
+    """Weighted depth sum / alpha, 0 where alpha is 0."""
     positive = alpha > 0
-    depth = torch.where(positive, dsum / torch.where(positive, alpha, torch.ones_like(alpha)), torch.zeros_like(alpha))
-    return color, alpha, depth
+    return torch.where(positive, dsum / torch.where(positive, alpha, torch.ones_like(alpha)), torch.zeros_like(alpha))
 
 
 def background_tensor(background, height: int, width: int, dtype: torch.dtype) -> torch.Tensor:
@@ -223,9 +228,19 @@ def rasterize(means: torch.Tensor, rotmats: torch.Tensor, scales: torch.Tensor, 
               sh: torch.Tensor, camera: Camera, background=None, sh_degree: int | None = None, near: float = 0.01,
               tile: int = 16, backend: str = "cpp", threads: int = 1
               ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Render world Gaussians (matrices for rotations) differentiably; returns colour, alpha, depth."""
+    """Render world Gaussians (matrices for rotations) differentiably; returns colour, alpha, depth.
+
+    ``backend``: "fused" (one compiled call, forward and backward), "cpp" or "torch" (compositing path after
+    the torch projection); ``threads``: OpenMP threads of the compiled kernels.
+    """
     max_degree = int(round(sh.shape[1] ** 0.5)) - 1
     degree = max_degree if sh_degree is None else min(sh_degree, max_degree)
+    if backend == "fused":
+        h, w = camera.height, camera.width
+        bg = background_tensor(background, h, w, means.dtype)
+        color, alpha, dsum = fused.FusedRasterize.apply(means, rotmats, scales, opacities, sh, camera, bg,
+                                                        (degree + 1) ** 2, near, tile, threads)
+        return color, alpha, expected_depth(dsum, alpha)
     screen = project(means, rotmats, scales, opacities, sh, camera, degree, near)
     h, w = camera.height, camera.width
     bins = bin_tiles(screen, h, w, tile)

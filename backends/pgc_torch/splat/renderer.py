@@ -15,7 +15,7 @@ from pgc.types import Camera, Capture, Mesh, WorldGaussians
 from pgc_torch.specs_splat import TorchSplatOptions
 from pgc_torch.threads import torch_threads
 
-from . import kernel
+from . import fused, kernel
 from .binding import quat_to_rotmat
 from .fit import TorchFitBackend
 from .rasterizer import rasterize
@@ -28,12 +28,12 @@ class TorchSplatRenderer(SplatRenderer):
 
     @property
     def compositor(self) -> str:
-        """'cpp' or 'torch': the compositing path this instance uses."""
+        """'fused', 'cpp' or 'torch': the rendering path this instance uses."""
         choice = self.options.compositor
         if choice == "auto":
-            return "cpp" if kernel.available() else "torch"
-        if choice == "cpp":
-            kernel.load()  # raises KernelUnavailable with the reason
+            return "fused" if fused.available() else "cpp" if kernel.available() else "torch"
+        if choice in ("fused", "cpp"):
+            (fused if choice == "fused" else kernel).load()  # raises KernelUnavailable with the reason
         return choice
 
     @property
