@@ -1,16 +1,18 @@
-"""Simulator benchmark: speed against error for ``xpbd-torch`` and ``xpbd-jax``, with Newton as a peer.
+"""Simulator benchmark: speed against error for ``xpbd-native``, ``xpbd-jax`` and ``xpbd-torch``, Newton as a peer.
 
-    python benchmarks/bench_simulator.py [--preset tiny|default] [--out DIR]
+    python benchmarks/bench_simulator.py [--preset tiny|default] [--studies ...] [--sizes 5k,7k]
+                                         [--backends native,jax] [--out DIR]
 
 Measures, on the synthetic body and t-shirt (pgc.synth):
-1. frames per second at the paper's settings (30 substeps, 20 iterations) per backend and garment size;
+1. frames per second at the paper's settings (30 substeps, 20 iterations) per backend and garment size
+   (7k: the size of the demo's reconstructed garment), with the speed-up of each backend over xpbd-jax;
 2. speed against error: constraint residual, strain and penetration against iterations and substeps, for
    both parallel updates (graph colouring vs Jacobi), from the same settled state on the same motion frames;
 3. the sag-free rest shape: sag (mean / max / hem displacement after settling, and the part left after
    removing the mean drop) with and without it, for a capture floating off the body and one resting on it;
-4. Newton's SolverXPBD on the same drape (when warp + newton are installed): speed and the difference of
-   the resting shapes, at settings its Jacobi spring solve converges for (``PRESETS[...]["newton"]``, both
-   sides), and once at the paper's settings, where it diverges (see newton_peer).
+4. Newton's SolverXPBD on the same drape (when warp + newton are installed): speed, XPBD residual and the
+   difference of the resting shapes, at settings its Jacobi spring solve converges for
+   (``PRESETS[...]["newton"]``, all sides), and once at the paper's settings, where it diverges (see newton_peer).
 Prints tables and writes JSON records (role, implementation, preset, settings, seconds, peak_mb, errors,
 versions). ``run(preset)`` returns the records (``pgc bench --role simulator`` calls it).
 """
@@ -39,14 +41,14 @@ from pgc.types import BodyMotion, Mesh
 PRESETS: dict[str, dict[str, Any]] = {
     "tiny": {"sizes": {"0.7k": 0.04}, "frames": 3, "sweep_size": "0.7k", "iterations": [1, 2, 5, 10, 20],
              "substeps": [5, 10, 30], "torch_iterations": [5, 20], "settle": 6, "sag_iterations": 3,
-             "newton": {"size": "0.7k", "stretch_stiffness": 100.0, "substeps": 300, "iterations": 5, "damping": 5.0,
-                        "frames": 20},
-             "backends": ["jax", "torch"]},
-    "default": {"sizes": {"5k": 0.0143, "15k": 0.0082}, "frames": 3, "sweep_size": "5k",
+             "newton": {"sizes": ["0.7k"], "stretch_stiffness": 100.0, "substeps": 300, "iterations": 5,
+                        "damping": 5.0, "frames": 20, "backends": ["native", "jax"]},
+             "backends": ["native", "jax", "torch"]},
+    "default": {"sizes": {"5k": 0.0143, "7k": 0.012, "15k": 0.0082}, "frames": 3, "sweep_size": "5k",
                 "iterations": [1, 5, 20, 40], "substeps": [10, 30], "torch_iterations": [20], "settle": 10,
-                "sag_iterations": 3, "backends": ["jax", "torch"],
-                "newton": {"size": "5k", "stretch_stiffness": 100.0, "substeps": 300, "iterations": 5, "damping": 5.0,
-                           "frames": 30}},
+                "sag_iterations": 3, "backends": ["native", "jax", "torch"],
+                "newton": {"sizes": ["5k", "7k"], "stretch_stiffness": 100.0, "substeps": 300, "iterations": 5,
+                           "damping": 5.0, "frames": 10, "backends": ["native", "jax"]}},
 }
 MOTION, MOTION_START = "goalpost", 8
 """Timed frames come from this motion starting at this frame (the arms are moving there)."""
@@ -68,6 +70,10 @@ def scene(resolution: float, looseness: float = 0.03) -> tuple[Mesh, BodyMotion]
 
 
 def simulator(backend: str, **options: Any) -> XPBDSimulator:
+    if backend == "native":
+        from pgc_native.xpbd.simulator import NativeXPBDSimulator
+
+        return NativeXPBDSimulator(options)
     if backend == "torch":
         from pgc_torch.xpbd.simulator import TorchXPBDSimulator
 
@@ -88,7 +94,8 @@ def errors(runner: FrameRunner, res: np.ndarray, c: np.ndarray, body: np.ndarray
 
 def timed_frames(sim: XPBDSimulator, garment: Mesh, motion: BodyMotion, frames: int,
                  start_state: np.ndarray | None = None) -> tuple[float, dict]:
-    """Seconds per frame over ``frames`` motion frames (after one warm-up frame), and the last frame's errors."""
+    """Seconds per frame over ``frames`` motion frames (after one warm-up frame): the fastest frame, and the
+    last frame's errors with the median frame time (``seconds_median``)."""
     model = sim.build_model(garment)
     runner = FrameRunner(sim.make_stepper(model, step_settings(sim.options, motion.fps)), motion.faces)
     if start_state is not None:
@@ -102,7 +109,8 @@ def timed_frames(sim: XPBDSimulator, garment: Mesh, motion: BodyMotion, frames: 
         _, res, c = runner.step(body[k - 1], body[k])
         times.append(time.perf_counter() - t0)
     # the fastest frame: the machine is shared, slower frames measure the other users
-    return min(times), errors(runner, res, c, body[MOTION_START + frames - 1], motion.faces)
+    return min(times), {**errors(runner, res, c, body[MOTION_START + frames - 1], motion.faces),
+                        "seconds_median": float(np.median(times))}
 
 
 def record(implementation: str, preset: str, settings: dict, seconds: float, errs: dict) -> dict:
@@ -113,8 +121,8 @@ def record(implementation: str, preset: str, settings: dict, seconds: float, err
 
 def bench_fps(preset: str, cfg: dict) -> list[dict]:
     out = []
-    for size, resolution in cfg["sizes"].items():
-        garment, motion = scene(resolution)
+    for size in cfg.get("fps_sizes", cfg["sizes"]):
+        garment, motion = scene(cfg["sizes"][size])
         for backend in cfg["backends"]:
             sim = simulator(backend)
             seconds, errs = timed_frames(sim, garment, motion, cfg["frames"])
@@ -122,6 +130,10 @@ def bench_fps(preset: str, cfg: dict) -> list[dict]:
                                                            "vertices": len(garment.vertices), "substeps": 30,
                                                            "iterations": 20, "solver": sim.options.solver},
                                   seconds, errs))
+    jax = {r["settings"]["garment"]: r["seconds"] for r in out if r["implementation"] == "xpbd-jax"}
+    for r in out:
+        if r["settings"]["garment"] in jax:
+            r["errors"]["speedup_vs_jax"] = jax[r["settings"]["garment"]] / r["seconds"]
     return out
 
 
@@ -181,11 +193,13 @@ def bench_sag_free(preset: str, cfg: dict) -> list[dict]:
 
 
 def bench_newton(preset: str, cfg: dict) -> list[dict]:
-    """Newton's SolverXPBD against ours on the same drape: the garment on the static capture-pose body.
+    """Newton's SolverXPBD against ours on the same drape: each garment of ``cfg["newton"]["sizes"]`` on the
+    static capture-pose body.
 
-    Newton's un-averaged Jacobi spring sweep diverges at the paper's settings (see newton_peer), so both run
+    Newton's un-averaged Jacobi spring sweep diverges at the paper's settings (see newton_peer), so all run
     the peer settings ``cfg["newton"]`` (softer stretch springs, more substeps); one Newton run at the
-    paper's settings records the divergence.
+    paper's settings per garment records the divergence. Residual: RMS of ``C + alpha~ lam`` after the last
+    substep, on every side.
     """
     sys.path.insert(0, str(Path(__file__).parent))
     import newton_peer
@@ -194,52 +208,62 @@ def bench_newton(preset: str, cfg: dict) -> list[dict]:
         print("newton/warp not installed: skipping the Newton peer (pip install warp-lang==1.19.0 newton==1.8.0)")
         return []
     peer = cfg["newton"]
-    garment, motion = scene(cfg["sizes"][peer["size"]])
-    body = motion.vertices[0].astype(np.float64)
-    base = {"study": "newton_peer", "garment": f"tshirt-{peer['size']}", "vertices": len(garment.vertices),
-            "frames": peer["frames"]}
     out = []
-    paper = simulator("jax")
-    paper_model = paper.build_model(garment)
-    h_paper = 1.0 / (motion.fps * paper.options.substeps)
-    paper_x, _, paper_s = newton_peer.newton_settle(paper_model, Mesh(body, motion.faces), 2, paper.options)
-    paper_sag = sag(paper_x, garment.vertices) if np.all(np.isfinite(paper_x)) else (np.inf, np.inf)
-    out.append(record("newton-xpbd", preset, {**base, "frames": 2, "substeps": paper.options.substeps,
-                                               "iterations": paper.options.iterations,
-                                               "stretch_stiffness": paper.options.stretch_stiffness},
-                      paper_s, {"jacobi_eigenvalue": newton_peer.jacobi_eigenvalue(paper_model, h_paper),
-                                "sag_mean": paper_sag[0], "sag_max": paper_sag[1],
-                                "diverged": float(not paper_sag[1] < 1.0)}))
-
-    sim = simulator("jax", stretch_stiffness=peer["stretch_stiffness"], substeps=peer["substeps"],
-                    iterations=peer["iterations"], damping=peer["damping"])
-    model = sim.build_model(garment)
-    settings = {**base, "substeps": peer["substeps"], "iterations": peer["iterations"], "damping": peer["damping"],
-                "stretch_stiffness": peer["stretch_stiffness"], "bend_stiffness": sim.options.bend_stiffness}
-    eigenvalue = newton_peer.jacobi_eigenvalue(model, 1.0 / (motion.fps * peer["substeps"]))
-    runner = FrameRunner(sim.make_stepper(model, step_settings(sim.options, motion.fps)), motion.faces)
-    runner.step(body, body)  # warm-up (JIT compile)
-    t0 = time.perf_counter()
-    for _ in range(peer["frames"] - 1):
-        runner.step(body, body)
-    ours_s = (time.perf_counter() - t0) / (peer["frames"] - 1)
-    ours = (runner.x, runner.stepper.state()[1])
-    theirs_x, theirs_v, newton_s = newton_peer.newton_settle(model, Mesh(body, motion.faces), peer["frames"],
-                                                             sim.options)
-    finite = np.all(np.isfinite(theirs_x))
-    d = np.linalg.norm(ours[0] - theirs_x, axis=1) if finite else np.array([np.inf])
-    common = {"jacobi_eigenvalue": eigenvalue, "shape_difference_mean": float(d.mean()),
-              "shape_difference_max": float(d.max())}
-    for name, (x, v), seconds in (("xpbd-jax", ours, ours_s), ("newton-xpbd", (theirs_x, theirs_v), newton_s)):
-        s_mean, s_max = sag(x, garment.vertices) if finite else (np.inf, np.inf)
-        out.append(record(name, preset, settings, seconds, {
-            **common, "sag_mean": s_mean, "sag_max": s_max,
-            "hem_sag": hem_sag(x, garment.vertices) if finite else np.inf,
-            "mean_speed": float(np.linalg.norm(v, axis=1).mean()) if finite else np.inf,
-            "max_speed": float(np.linalg.norm(v, axis=1).max()) if finite else np.inf,
-            "penetration_fraction": penetration_fraction(x, body, motion.faces, sim.options.collision_offset)
-            if finite else 1.0,
-            "diverged": float(not s_max < 1.0)}))  # a vertex more than 1 m from the garment: diverged
+    for size in peer["sizes"]:
+        garment, motion = scene(cfg["sizes"][size])
+        body = motion.vertices[0].astype(np.float64)
+        base = {"study": "newton_peer", "garment": f"tshirt-{size}", "vertices": len(garment.vertices),
+                "frames": peer["frames"]}
+        paper = simulator("jax")
+        paper_model = paper.build_model(garment)
+        h_paper = 1.0 / (motion.fps * paper.options.substeps)
+        paper_x, _, paper_s, paper_res = newton_peer.newton_settle(paper_model, Mesh(body, motion.faces), 2,
+                                                                   paper.options)
+        paper_sag = sag(paper_x, garment.vertices) if np.all(np.isfinite(paper_x)) else (np.inf, np.inf)
+        out.append(record("newton-xpbd", preset, {**base, "frames": 2, "substeps": paper.options.substeps,
+                                                   "iterations": paper.options.iterations,
+                                                   "stretch_stiffness": paper.options.stretch_stiffness},
+                          paper_s, {"jacobi_eigenvalue": newton_peer.jacobi_eigenvalue(paper_model, h_paper),
+                                    "sag_mean": paper_sag[0], "sag_max": paper_sag[1],
+                                    "diverged": float(not paper_sag[1] < 1.0)}))
+        opts = {"stretch_stiffness": peer["stretch_stiffness"], "substeps": peer["substeps"],
+                "iterations": peer["iterations"], "damping": peer["damping"]}
+        model = simulator("jax", **opts).build_model(garment)
+        eigenvalue = newton_peer.jacobi_eigenvalue(model, 1.0 / (motion.fps * peer["substeps"]))
+        results = {}
+        for backend in peer["backends"]:
+            sim = simulator(backend, **opts)
+            runner = FrameRunner(sim.make_stepper(model, step_settings(sim.options, motion.fps)), motion.faces)
+            runner.step(body, body)  # warm-up (JIT compile)
+            t0 = time.perf_counter()
+            for _ in range(peer["frames"] - 1):
+                _, res, _ = runner.step(body, body)
+            seconds = (time.perf_counter() - t0) / (peer["frames"] - 1)
+            results[f"xpbd-{backend}"] = (runner.x, runner.stepper.state()[1], seconds,
+                                          float(np.sqrt(np.mean(res**2))))
+        theirs_x, theirs_v, newton_s, newton_res = newton_peer.newton_settle(
+            model, Mesh(body, motion.faces), peer["frames"], simulator("jax", **opts).options)
+        results["newton-xpbd"] = (theirs_x, theirs_v, newton_s, newton_res)
+        settings = {**base, "substeps": peer["substeps"], "iterations": peer["iterations"],
+                    "damping": peer["damping"], "stretch_stiffness": peer["stretch_stiffness"],
+                    "bend_stiffness": paper.options.bend_stiffness}
+        ours_x = results[f"xpbd-{peer['backends'][0]}"][0]
+        for name, (x, v, seconds, residual) in results.items():
+            finite = bool(np.all(np.isfinite(x)))
+            d = np.linalg.norm(ours_x - x, axis=1) if finite else np.array([np.inf])
+            s_mean, s_max = sag(x, garment.vertices) if finite else (np.inf, np.inf)
+            out.append(record(name, preset, settings, seconds, {
+                "jacobi_eigenvalue": eigenvalue, "residual_rms": residual,
+                f"shape_difference_to_xpbd-{peer['backends'][0]}_mean": float(d.mean()),
+                f"shape_difference_to_xpbd-{peer['backends'][0]}_max": float(d.max()),
+                "sag_mean": s_mean, "sag_max": s_max,
+                "hem_sag": hem_sag(x, garment.vertices) if finite else np.inf,
+                "mean_speed": float(np.linalg.norm(v, axis=1).mean()) if finite else np.inf,
+                "max_speed": float(np.linalg.norm(v, axis=1).max()) if finite else np.inf,
+                "penetration_fraction": penetration_fraction(x, body, motion.faces, paper.options.collision_offset)
+                if finite else 1.0,
+                "speedup_vs_newton": newton_s / seconds,
+                "diverged": float(not s_max < 1.0)}))  # a vertex more than 1 m from the garment: diverged
     return out
 
 
@@ -276,11 +300,19 @@ def main() -> None:
     parser.add_argument("--preset", default="tiny", choices=sorted(PRESETS))
     parser.add_argument("--out", default="benchmarks/results")
     parser.add_argument("--studies", default="fps,convergence,sag_free,newton")
+    parser.add_argument("--sizes", default=None, help="garment sizes of the fps study (preset keys, e.g. 5k,7k)")
+    parser.add_argument("--backends", default=None, help="backends of the fps study, e.g. native,jax")
+    parser.add_argument("--tag", default="", help="suffix of the JSON file name")
     args = parser.parse_args()
-    records = run(args.preset, studies=tuple(args.studies.split(",")))
+    settings: dict[str, Any] = {}
+    if args.sizes:
+        settings["fps_sizes"] = args.sizes.split(",")
+    if args.backends:
+        settings["backends"] = args.backends.split(",")
+    records = run(args.preset, settings, studies=tuple(args.studies.split(",")))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    path = out / f"simulator_{args.preset}.json"
+    path = out / f"simulator_{args.preset}{args.tag}.json"
     path.write_text(json.dumps(records, indent=1))
     print(f"wrote {path}")
 

@@ -50,7 +50,7 @@ def jacobi_eigenvalue(model: ClothModel, h: float) -> float:
 
 
 def newton_settle(model: ClothModel, body: Mesh, frames: int, options: XPBDOptions, fps: float = 30.0
-                  ) -> tuple[np.ndarray, np.ndarray, float]:
+                  ) -> tuple[np.ndarray, np.ndarray, float, float]:
     """Drape the garment of ``model`` on the static ``body`` for ``frames`` frames with Newton's SolverXPBD.
 
     The same particles, masses, springs (stretch and bending, each with stiffness ``1 / compliance`` and the
@@ -58,7 +58,10 @@ def newton_settle(model: ClothModel, body: Mesh, frames: int, options: XPBDOptio
     particle velocities before each substep, as ours) and cloth-body gap (particle radius = our offset) as
     ours; no particle self-contact (ours has it off by default). The scene is moved so that the garment's
     centre is at the origin (float32 positions resolve ``g h^2`` there) and moved back. Returns the final
-    positions (V, 3) and velocities (V, 3) and the seconds per frame after a warm-up (compile) frame.
+    positions (V, 3) and velocities (V, 3), the seconds per frame after a warm-up (compile) frame, and the
+    RMS XPBD residual ``C + alpha~ lam`` (m) of the springs after the last substep, ours' measure: Newton's
+    multipliers (same sign and ``alpha~ = 1 / (ke h^2)`` convention) are read from its spring kernel's
+    output during that substep.
     """
     os.environ.setdefault("WARP_CACHE_PATH", "/tmp/pgc_warp_cache")
     import warp as wp
@@ -90,18 +93,35 @@ def newton_settle(model: ClothModel, body: Mesh, frames: int, options: XPBDOptio
     dt = 1.0 / (fps * options.substeps)
     damping = float(np.exp(-options.damping * dt))
 
-    def frame() -> None:
+    def substep() -> None:
         nonlocal s0, s1
-        for _ in range(options.substeps):
-            s0.particle_qd.numpy()[:] *= damping  # a view of the CPU array: damps in place
-            s0.clear_forces()
-            pipeline.collide(s0, contacts)
-            solver.step(s0, s1, control, contacts, dt)
-            s0, s1 = s1, s0
+        s0.particle_qd.numpy()[:] *= damping  # a view of the CPU array: damps in place
+        s0.clear_forces()
+        pipeline.collide(s0, contacts)
+        solver.step(s0, s1, control, contacts, dt)
+        s0, s1 = s1, s0
 
-    frame()  # compile
+    from newton._src.solvers.xpbd.kernels import solve_springs  # the multipliers stay inside SolverXPBD.step
+
+    launch, lam = wp.launch, {}
+
+    def spy(kernel: object, *args: object, **kwargs: object) -> object:
+        if kernel is solve_springs:
+            lam["springs"] = kwargs["outputs"][0]  # updated in place over the iterations of the substep
+        return launch(kernel, *args, **kwargs)
+
+    for _ in range(options.substeps):  # compile
+        substep()
     start = time.perf_counter()
-    for _ in range(frames - 1):
-        frame()
+    for _ in range((frames - 1) * options.substeps - 1):
+        substep()
+    wp.launch = spy  # the last substep: keep its spring multipliers
+    try:
+        substep()
+    finally:
+        wp.launch = launch
     seconds = (time.perf_counter() - start) / max(frames - 1, 1)
-    return (s0.particle_q.numpy().astype(np.float64) + centre, s0.particle_qd.numpy().astype(np.float64), seconds)
+    x = s0.particle_q.numpy().astype(np.float64)
+    c = np.linalg.norm(x[model.ci] - x[model.cj], axis=1) - model.rest
+    res = c + model.compliance / dt**2 * lam["springs"].numpy().astype(np.float64)
+    return x + centre, s0.particle_qd.numpy().astype(np.float64), seconds, float(np.sqrt(np.mean(res**2)))

@@ -18,11 +18,14 @@ import tempfile
 from pathlib import Path
 from typing import Sequence
 
+from pgc.errors import PGCPluginError
+
 DEFAULT_FLAGS = ("-O3", "-fopenmp", "-fPIC", "-shared", "-std=c++17")
 
 
-class KernelUnavailable(RuntimeError):
-    """A compiled kernel cannot be built or loaded (no compiler, no OpenMP, a compile error, ...)."""
+class KernelUnavailable(PGCPluginError):
+    """A compiled kernel cannot be built or loaded (no compiler, no OpenMP, a compile error, ...); the set-up
+    installs g++ (Debian), so on a supported machine this names a broken toolchain."""
 
 
 def cache_dir() -> Path:
@@ -47,7 +50,8 @@ def build(source: Path, flags: Sequence[str] = DEFAULT_FLAGS, force: bool = Fals
         return target
     compiler = os.environ.get("CXX") or shutil.which("g++") or shutil.which("c++")
     if compiler is None:
-        raise KernelUnavailable("no C++ compiler found (install g++ or set CXX)")
+        raise KernelUnavailable("no C++ compiler found: install g++ (apt-get install g++; scripts/setup.sh does) "
+                                "or point CXX at one")
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(suffix=".so", dir=target.parent)
     os.close(fd)

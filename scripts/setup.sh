@@ -8,7 +8,7 @@ VENV=${PGC_VENV:-.venv}
 PY=${PYTHON:-python3}
 
 need_pkgs=()
-for p in libllvm19 libusb-1.0-0 libgl1 libegl1 libx11-6 libgomp1 chromium; do
+for p in libllvm19 libusb-1.0-0 libgl1 libegl1 libx11-6 libgomp1 g++ chromium; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || need_pkgs+=("$p")
 done
 if [ ${#need_pkgs[@]} -gt 0 ]; then
