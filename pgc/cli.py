@@ -7,11 +7,14 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
+import traceback
 
 from pgc.errors import PGCError
 
-COMMANDS = ("plugins", "config", "synth", "calibrate", "reconstruct", "animate", "render", "eval", "bench", "demo")
+COMMANDS = ("plugins", "config", "synth", "calibrate", "reconstruct", "animate", "render", "eval", "bench", "demo",
+            "export", "info", "report", "sweep")
 
 EPILOG = """\
 typical session:
@@ -28,6 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="pgc", description="PGC: physics-based Gaussian cloth from a single pose.", epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"pgc {_version()}")
+    parser.add_argument("--debug", action="store_true", help="on an error, print the Python traceback too")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         module = importlib.import_module(f"pgc.commands.{name}_cmd")
@@ -45,19 +49,60 @@ def _version() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run one command. Exit codes: 0 done, 2 a user error (one ``pgc COMMAND: error:`` line naming the file,
+    the field and the fix; also for OS errors such as permissions), 1 an unexpected error (one line naming
+    the exception; ``--debug`` prints the traceback), 130 interrupted (SIGINT or SIGTERM)."""
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
+    previous = signal.signal(signal.SIGTERM, _terminate) if _main_thread() else None
     try:
         return int(args.func(args) or 0)
     except PGCError as exc:
-        print(f"pgc {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        return _fail(args, str(exc), 2)
     except KeyboardInterrupt:
         print(f"pgc {args.command}: interrupted; completed stages are kept and a rerun resumes", file=sys.stderr)
         return 130
+    except OSError as exc:
+        return _fail(args, os_error_message(exc), 2)
+    except Exception as exc:
+        return _fail(args, f"unexpected {type(exc).__name__}: {exc}; this is a bug or an input PGC does not "
+                           "check yet: rerun with 'pgc --debug ...' for the traceback and report it", 1)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def os_error_message(exc: OSError) -> str:
+    """One line for an OS error: the path, the system's reason and what usually fixes it."""
+    path = exc.filename if exc.filename is not None else "(path unknown)"
+    reason = exc.strerror or str(exc)
+    fix = {PermissionError: "check the permissions, or give a folder you can write",
+           NotADirectoryError: "a part of the path is a file: give a folder path",
+           IsADirectoryError: "it is a folder: give a file path",
+           FileNotFoundError: "check the path",
+           FileExistsError: "remove it or give another path"}.get(type(exc), "check the path and the disk")
+    return f"{path}: {reason}; {fix}"
+
+
+def _fail(args: argparse.Namespace, message: str, code: int) -> int:
+    if getattr(args, "debug", False):
+        traceback.print_exc()
+    print(f"pgc {args.command}: error: {message}", file=sys.stderr)
+    return code
+
+
+def _terminate(signum: int, frame: object) -> None:
+    """SIGTERM unwinds like Ctrl-C: temporary files are removed, the folder lock released."""
+    raise KeyboardInterrupt
+
+
+def _main_thread() -> bool:
+    import threading
+
+    return threading.current_thread() is threading.main_thread()
 
 
 if __name__ == "__main__":

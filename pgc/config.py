@@ -23,12 +23,12 @@ wrong type, fails with a message naming the file and key and listing what is val
 from __future__ import annotations
 
 import copy
-import importlib
-import pkgutil
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+import pydantic
 
 from pgc.errors import PGCConfigError, PGCPluginError
 from pgc.options import Options
@@ -39,15 +39,25 @@ MULTI_ROLES = {"metric"}
 """Roles of which every listed implementation is used (not only the first available)."""
 
 
-def stage_settings() -> dict[str, type[Options]]:
-    """Stage name -> options model, gathered from ``pgc.pipeline.settings_*`` modules (light imports)."""
-    import pgc.pipeline as pipeline
+STAGES: dict[str, str] = {
+    "garment": "pgc.pipeline.settings_garment:GarmentSettings",
+    "fit_splats": "pgc.roles.splat_renderer:FitSplatsSettings",
+    "base_color": "pgc.pipeline.settings_base_color:BaseColorSettings",
+    "material": "pgc.roles.pbr_renderer:MaterialFitSettings",
+    "animate": "pgc.pipeline.settings_animate:AnimateSettings",
+    "render": "pgc.pipeline.settings_render:RenderSettings",
+    "eval": "pgc.pipeline.settings_eval:EvalSettings",
+}
+"""Stage name -> its options model, by reference (as :data:`pgc.registry.ROLES` names the role interfaces): the
+``[stages.NAME]`` tables. The two fits' settings live with their role contracts; the pipeline-only ones in the
+pipeline's ``settings_<stage>.py`` modules, loaded only when a config is resolved."""
 
-    out: dict[str, type[Options]] = {}
-    for info in sorted(pkgutil.iter_modules(pipeline.__path__), key=lambda i: i.name):
-        if info.name.startswith("settings_"):
-            out.update(importlib.import_module(f"pgc.pipeline.{info.name}").SETTINGS)
-    return out
+
+def stage_settings() -> dict[str, type[Options]]:
+    """Stage name -> options model (:data:`STAGES`, resolved)."""
+    from pgc.registry import load_reference
+
+    return {name: load_reference(ref) for name, ref in STAGES.items()}
 
 
 def deep_merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
@@ -62,6 +72,8 @@ def deep_merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]
 
 def load_toml(path: str | Path) -> dict[str, Any]:
     path = Path(path)
+    if path.is_dir():
+        raise PGCConfigError(f"{path}: is a folder; give a config TOML file")
     if not path.is_file():
         raise PGCConfigError(f"{path}: config file not found")
     try:
@@ -69,6 +81,11 @@ def load_toml(path: str | Path) -> dict[str, Any]:
             return tomllib.load(f)
     except tomllib.TOMLDecodeError as exc:
         raise PGCConfigError(f"{path}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise PGCConfigError(f"{path}: not UTF-8 text (byte {exc.start}: {exc.reason}); save the file as UTF-8 "
+                             "TOML") from None
+    except PermissionError as exc:
+        raise PGCConfigError(f"{path}: cannot be read ({exc.strerror}); check its permissions") from None
 
 
 @dataclass
@@ -164,7 +181,10 @@ def resolve(data: dict[str, Any] | None = None, registry: Registry | None = None
             names = [n for n in names if (role, n) in registry.implementations]
             if not names:
                 continue
-        impls = [registry.get(role, n) for n in names]  # unknown names fail here with the list
+        try:
+            impls = [registry.get(role, n) for n in names]  # unknown names fail here with the list
+        except PGCConfigError as exc:
+            raise PGCConfigError(f"{exc} (in {where} use); fix the name or install its plugin") from None
         options: dict[str, Options | None] = {}
         for key, value in table.items():
             if not isinstance(value, dict):
@@ -198,8 +218,10 @@ def resolve(data: dict[str, Any] | None = None, registry: Registry | None = None
     for name, model in known.items():
         try:
             stages[name] = model.model_validate(stages_raw.get(name, {}))
-        except Exception as exc:
-            raise PGCConfigError(f"{source}: [stages.{name}]: {exc}; valid options: "
+        except pydantic.ValidationError as exc:
+            problems = "; ".join(f"option '{'.'.join(str(p) for p in e['loc'])}': {e['msg']} (got {e.get('input')!r})"
+                                 for e in exc.errors())
+            raise PGCConfigError(f"{source}: [stages.{name}] {problems}; valid options: "
                                  f"{', '.join(model.model_fields)}") from None
     return RunConfig(roles, stages, block, source)
 

@@ -15,3 +15,7 @@ class PGCConfigError(PGCError, ValueError):
 
 class PGCPluginError(PGCError, RuntimeError):
     """A plugin cannot be used (missing dependency, import failure, bad registration)."""
+
+
+class PGCLockError(PGCError, RuntimeError):
+    """An output folder is being written by another live process."""

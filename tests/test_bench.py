@@ -191,3 +191,17 @@ def test_a_failing_implementation_is_recorded_and_the_others_still_run(tmp_path)
     ok = [r for r in records if r["implementation"] == "opencv"]
     assert len(ok) == 1 and ok[0]["errors"]["max_abs"] < 1e-5
     assert "broken on purpose" in (tmp_path / "out" / "bench.html").read_text()
+
+
+@pytest.mark.slow
+def test_bench_on_a_local_cluster_gives_the_in_process_records(small_run, tmp_path):
+    """--scheduler local:2: one task per role on two worker processes, merged into the same bench.json."""
+    _, here = small_run
+    matrix = _matrix(tmp_path, SMALL)
+    records = run_bench(tmp_path / "run", "tiny", matrix, scheduler="local:2")
+    assert records == json.loads((tmp_path / "run" / "bench.json").read_text())
+    key = [(r["role"], r["label"], r["settings"]["case"]) for r in records]
+    assert key == [(r["role"], r["label"], r["settings"]["case"]) for r in here]
+    for a, b in zip(records, here):
+        assert a["errors"] == pytest.approx(b["errors"], rel=1e-6, abs=1e-9)
+    assert (tmp_path / "run" / "plots" / "filter.png").is_file()

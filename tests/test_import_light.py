@@ -1,9 +1,10 @@
-"""`import pgc` and building the CLI must not import the heavy array/geometry libraries."""
+"""`import pgc` and building the CLI (every subcommand's parser, `pgc sweep` included) must not import the heavy
+array/geometry libraries, nor Dask."""
 
 import subprocess
 import sys
 
-HEAVY = ("torch", "jax", "mitsuba", "drjit", "open3d", "pycolmap", "pymeshlab", "onnxruntime", "cv2")
+HEAVY = ("torch", "jax", "mitsuba", "drjit", "open3d", "pycolmap", "pymeshlab", "onnxruntime", "cv2", "dask", "distributed")
 
 
 def test_import_pgc_and_cli_stay_light():

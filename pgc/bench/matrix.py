@@ -28,6 +28,19 @@ from pgc.errors import PGCConfigError
 DEFAULT_MATRIX = Path(__file__).with_name("default_matrix.toml")
 PRESETS = ("tiny", "default")
 ROLE_KEYS = {"implementations", "variants", *PRESETS}
+WORKLOADS: dict[str, str] = {
+    "reconstructor": "pgc.bench.workloads.reconstructor",
+    "splat_renderer": "pgc.bench.workloads.splat",
+    "brdf": "pgc.bench.workloads.brdf",
+    "pbr_renderer": "pgc.bench.workloads.pbr",
+    "albedo_estimator": "pgc.bench.workloads.albedo",
+    "simulator": "pgc.bench.workloads.simulator",
+    "filter": "pgc.bench.workloads.filter",
+    "metric": "pgc.bench.workloads.metric",
+    "scene_renderer": "pgc.bench.workloads.scene_renderer",
+    "calibrator": "pgc.bench.workloads.calibrator",
+}
+"""Role -> module of its workload (imported only when the role runs); the matrix validates roles against it."""
 
 
 @dataclass
@@ -57,8 +70,6 @@ class RolePlan:
 def load_matrix(path: str | os.PathLike | None, registry: Any, preset: str,
                 roles: list[str] | None = None) -> list[RolePlan]:
     """The validated plan of ``path`` (default: the shipped matrix) for ``preset``, limited to ``roles``."""
-    from pgc.bench.workloads import WORKLOADS
-
     path = Path(path) if path is not None else DEFAULT_MATRIX
     if preset not in PRESETS:
         raise PGCConfigError(f"unknown bench preset '{preset}'; presets: {', '.join(PRESETS)}")

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from pgc.bench import records as rec
-from pgc.bench.matrix import load_matrix
+from pgc.bench.matrix import WORKLOADS, RolePlan, load_matrix
 from pgc.bench.measure import versions
 from pgc.bench.workloads import Context
 from pgc.events import Reporter
@@ -18,28 +18,23 @@ DETAILS = "details"
 
 
 def synthetic_capture(out: Path, preset: str, reporter: Reporter) -> str:
-    """The synthetic capture of ``preset`` in ``out/capture-PRESET`` (generated once; reused when complete)."""
+    """The synthetic capture of ``preset`` in ``out/capture-PRESET`` (generated once; reused when complete).
+    Workers of a distributed bench wait on a lock file while one of them generates it."""
+    import fcntl
+
     from pgc.synth.generate import generate
 
     root = out / f"capture-{preset}"
-    if not (root / "transforms.json").is_file() or not (root / "ground_truth" / "full.ply").is_file():
-        generate(root, preset, reporter=reporter)
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / f".capture-{preset}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (root / "transforms.json").is_file() or not (root / "ground_truth" / "full.ply").is_file():
+            generate(root, preset, reporter=reporter)
     return str(root)
 
 
-def run_bench(out: str | os.PathLike, preset: str = "tiny", matrix: str | os.PathLike | None = None,
-              roles: list[str] | None = None, registry: Any = None,
-              reporter: Reporter | None = None) -> list[dict[str, Any]]:
-    """Run the matrix (default: the shipped one) on ``preset`` for ``roles`` (default: all in the matrix),
-    write everything into ``out`` and return the records. Invalid matrices fail before any work starts."""
-    from pgc.registry import default_registry
-
-    registry = registry or default_registry()
-    reporter = reporter or Reporter.silent()
-    out = Path(out)
-    plans = load_matrix(matrix, registry, preset, roles)
-    out.mkdir(parents=True, exist_ok=True)
-    env = versions()
+def bench_role(out: Path, preset: str, plan: RolePlan, registry: Any, reporter: Reporter) -> list[dict[str, Any]]:
+    """The records of one role of the matrix (a failed workload gives one record saying why)."""
     capture: list[str] = []
 
     def capture_dir() -> str:
@@ -47,25 +42,71 @@ def run_bench(out: str | os.PathLike, preset: str = "tiny", matrix: str | os.Pat
             capture.append(synthetic_capture(out, preset, reporter))
         return capture[0]
 
-    from pgc.bench.workloads import WORKLOADS
+    module = importlib.import_module(WORKLOADS[plan.role])
+    with reporter.stage(f"bench_{plan.role}", runs=len(plan.runs)) as stage:
+        start = time.perf_counter()
+        ctx = Context(plan.role, preset, plan.workload, plan.runs, registry, versions(), capture_dir, stage)
+        try:
+            new = module.bench(ctx)
+        except Exception as exc:  # the workload itself (scene, reference) failed: one record says why
+            new = [ctx.failed("(workload)", "", {}, exc, "")]
+        stage.record(records=len(new), seconds=time.perf_counter() - start)
+    if plan.workload.get("options"):
+        for r in new:  # the preset's options for every implementation, recorded with each run
+            r["settings"]["preset_options"] = plan.workload["options"]
+    return new
 
+
+def bench_role_task(out: str, preset: str, matrix: str | None, role: str) -> list[dict[str, Any]]:
+    """:func:`bench_role` on a worker: the role's plan from the matrix with the worker's installed registry."""
+    from pgc.registry import default_registry
+
+    registry = default_registry()
+    plan = load_matrix(matrix, registry, preset, [role])[0]
+    return bench_role(Path(out), preset, plan, registry, Reporter.silent())
+
+
+def run_bench(out: str | os.PathLike, preset: str = "tiny", matrix: str | os.PathLike | None = None,
+              roles: list[str] | None = None, registry: Any = None, reporter: Reporter | None = None,
+              scheduler: str | None = None, threads: int | None = None) -> list[dict[str, Any]]:
+    """Run the matrix (default: the shipped one) on ``preset`` for ``roles`` (default: all in the matrix),
+    write everything into ``out`` and return the records. Invalid matrices fail before any work starts.
+    With ``scheduler`` (``local:N`` or a Dask scheduler address, :mod:`pgc.sweep.engine`) each role is one
+    task on Dask distributed, run with the workers' installed plugins; the records are merged in matrix
+    order into the same outputs."""
+    from pgc.registry import default_registry
+
+    registry = registry or default_registry()
+    reporter = reporter or Reporter.silent()
+    out = Path(out)
+    plans = load_matrix(matrix, registry, preset, roles)
+    out.mkdir(parents=True, exist_ok=True)
     records: list[dict[str, Any]] = []
-    for plan in plans:
-        module = importlib.import_module(WORKLOADS[plan.role])
-        with reporter.stage(f"bench_{plan.role}", runs=len(plan.runs)) as stage:
-            start = time.perf_counter()
-            ctx = Context(plan.role, preset, plan.workload, plan.runs, registry, env, capture_dir, stage)
-            try:
-                new = module.bench(ctx)
-            except Exception as exc:  # the workload itself (scene, reference) failed: one record says why
-                new = [ctx.failed("(workload)", "", {}, exc, "")]
-            stage.record(records=len(new), seconds=time.perf_counter() - start)
-        if plan.workload.get("options"):
-            for r in new:  # the preset's options for every implementation, recorded with each run
-                r["settings"]["preset_options"] = plan.workload["options"]
-        records += new
-        write_outputs(out, records)  # after every role: an interrupted run keeps what it measured
+    if scheduler is None:
+        for plan in plans:
+            records += bench_role(out, preset, plan, registry, reporter)
+            write_outputs(out, records)  # after every role: an interrupted run keeps what it measured
+        return records
+    from pgc.sweep.engine import Task, run_tasks
+
+    where = None if matrix is None else str(Path(matrix).resolve())
+    tasks = [Task(f"bench-{p.role}", bench_role_task, (str(out.resolve()), preset, where, p.role)) for p in plans]
+    outcome = run_tasks(tasks, scheduler, reporter, threads=threads, name="bench")
+    for plan, task in zip(plans, tasks):
+        if task.key in outcome.results:
+            records += outcome.results[task.key]
+        else:
+            records.append(failed_task_record(plan.role, preset, outcome.failed[task.key]))
+    write_outputs(out, records)
     return records
+
+
+def failed_task_record(role: str, preset: str, message: str) -> dict[str, Any]:
+    """The record of a role whose task failed on the cluster (its retries spent)."""
+    r = rec.make_record(role, "(workload)", preset, "", {}, float("nan"), float("nan"), {}, "", versions())
+    r["failed"] = message
+    r["label"] = "(workload)"
+    return r
 
 
 def write_outputs(out: Path, records: list[dict[str, Any]]) -> None:

@@ -1,10 +1,15 @@
-"""Shared pieces of the run commands: the --config/--quiet options and the registry + progress display."""
+"""Shared pieces of the run commands: the --config/--quiet options, the registry + progress display (with
+the config's ``[plugins] block`` applied), output-path checks and the output folder lock."""
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+from pathlib import Path
 from typing import Any
+
+from pgc.errors import PGCConfigError, PGCDataError
 
 
 def add_run_options(p: argparse.ArgumentParser) -> None:
@@ -14,13 +19,32 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print the result as JSON")
 
 
+def config_block(path: str | os.PathLike | None) -> list[str]:
+    """The ``[plugins] block`` list of a config file (empty without a file), checked."""
+    if path is None:
+        return []
+    from pgc.config import load_toml
+
+    plugins = load_toml(path).get("plugins", {})
+    block = plugins.get("block", []) if isinstance(plugins, dict) else None
+    if not isinstance(block, list) or not all(isinstance(b, str) for b in block):
+        raise PGCConfigError(f"{path}: [plugins] block must be a list of names (entry points or 'role:name')")
+    return block
+
+
+def discover(args: argparse.Namespace):
+    """The registry of installed plugins, with the blocks of ``--config`` (and PGC_BLOCK_PLUGINS) applied."""
+    from pgc.registry import Registry
+
+    return Registry.discover(block=config_block(getattr(args, "config", None)))
+
+
 def reporter_for(args: argparse.Namespace):
     """A registry with the progress display attached (unless --quiet) and a Reporter on its hooks."""
     from pgc.events import Reporter
     from pgc.progress import ProgressPrinter
-    from pgc.registry import Registry
 
-    registry = Registry.discover()
+    registry = discover(args)
     if not getattr(args, "quiet", False):
         registry.plugin_manager.register(ProgressPrinter(), name="progress")
     return registry, Reporter(registry.hook)
@@ -33,4 +57,82 @@ def load_config(args: argparse.Namespace, registry: Any):
 
 
 def emit(args: argparse.Namespace, result: dict[str, Any], text: str) -> None:
-    print(json.dumps(result, indent=2, default=str) if getattr(args, "json", False) else text)
+    from pgc.io.atomic import finite_or_none
+
+    print(json.dumps(finite_or_none(result), indent=2, default=str) if getattr(args, "json", False) else text)
+
+
+def check_out_folder(path: str | os.PathLike, option: str = "--out") -> Path:
+    """``path`` as an output folder that can be created and written, else a clear error (before any work)."""
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise PGCDataError(f"{option} {out}: is a file, not a folder; give a folder path (it is created if missing)")
+    parent = out
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise PGCDataError(f"{option} {out}: {parent} is a file, so no folder can be created below it; give "
+                           "another path")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise PGCDataError(f"{option} {out}: {parent} is not writable; check its permissions or give another path")
+    return out
+
+
+def check_out_file(path: str | os.PathLike, option: str = "--out") -> Path:
+    """``path`` as an output file that can be written (its folder is created if missing), else a clear error."""
+    out = Path(path)
+    if out.is_dir():
+        raise PGCDataError(f"{option} {out}: is a folder; give a file path (e.g. {out / 'metrics.json'})")
+    check_out_folder(out.parent if str(out.parent) else Path("."), option=f"{option} {out}: folder")
+    return out
+
+
+def check_not_inside(out: str | os.PathLike, source: str | os.PathLike, what: str) -> None:
+    """Refuse an output folder inside (or equal to) an input folder: the outputs would change the input."""
+    out_r, src_r = Path(out).resolve(), Path(source).resolve()
+    if out_r == src_r or src_r in out_r.parents:
+        raise PGCDataError(f"--out {out}: lies inside the {what} {source}; writing there changes the input (and "
+                           "its hash, so every rerun recomputes everything). Give a folder outside it")
+
+
+def writing(folder: str | os.PathLike, command: str):
+    """The exclusive lock of an output folder for the duration of a command (see :mod:`pgc.io.lock`)."""
+    from pgc.io.lock import FolderLock
+
+    return FolderLock(folder, command)
+
+
+def read_json_file(path: Path, what: str, fix: str) -> Any:
+    """A JSON file's content, or a clear error naming the file (missing, not UTF-8, malformed)."""
+    if not path.is_file():
+        raise PGCDataError(f"{path}: not found; {fix}")
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise PGCDataError(f"{path}: malformed {what} ({exc}); {fix}") from None
+
+
+def check_run(run: str | os.PathLike) -> dict[str, Any]:
+    """The ``run.json`` of a run folder after checking its fields and files, before any work."""
+    run = Path(run)
+    if not run.is_dir():
+        raise PGCDataError(f"{run}: not a folder; give a run folder made by 'pgc animate'")
+    fix = f"re-create the run with 'pgc animate ASSET --motion M --out {run}'"
+    meta = read_json_file(run / "run.json", "run.json", fix)
+    if not isinstance(meta, dict):
+        raise PGCDataError(f"{run / 'run.json'}: must be a JSON object; {fix}")
+    for key, kind in (("asset", str), ("frames", int), ("fps", (int, float)), ("motion", str)):
+        if not isinstance(meta.get(key), kind) or isinstance(meta.get(key), bool):
+            raise PGCDataError(f"{run / 'run.json'}: field '{key}' is missing or not a {getattr(kind, '__name__', 'number')}"
+                               f" (got {meta.get(key)!r}); {fix}")
+    if meta["frames"] < 1:
+        raise PGCDataError(f"{run / 'run.json'}: field 'frames' must be at least 1, got {meta['frames']}; {fix}")
+    if meta.get("capture") is not None and not isinstance(meta["capture"], str):
+        raise PGCDataError(f"{run / 'run.json'}: field 'capture' must be a folder path or null; {fix}")
+    for name in ("garment.npz", "body.npz"):
+        if not (run / name).is_file():
+            raise PGCDataError(f"{run / name}: not found; the run folder is incomplete: {fix}")
+    from pgc.io.asset import read_manifest
+
+    read_manifest(meta["asset"])
+    return meta

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from pgc.commands._common import add_run_options, emit, load_config, reporter_for
+from pgc.commands._common import (add_run_options, check_not_inside, check_out_folder, emit, load_config,
+                                  reporter_for, writing)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -26,10 +27,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from pgc.io.asset import read_asset
+    from pgc.io.motion import check_against_body, load_motion
     from pgc.pipeline.animate import animate, read_run
 
+    out = check_out_folder(args.out)
+    check_not_inside(out, args.asset, "asset folder")
     registry, reporter = reporter_for(args)
-    out = animate(args.asset, args.motion, args.out, load_config(args, registry), args.capture, reporter)
+    cfg = load_config(args, registry)
+    asset = read_asset(args.asset)  # manifest, hashes and every file checked before any work
+    if Path(args.motion).exists():
+        check_against_body(load_motion(args.motion), asset.body.vertices, args.motion)
+    with writing(out, "pgc animate"):
+        out = animate(args.asset, args.motion, out, cfg, args.capture, reporter)
     meta = read_run(out)
     emit(args, meta, f"simulated {meta['frames']} frames of '{args.motion}' into {out}")
     return 0

@@ -21,6 +21,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--config", metavar="FILE", help="bench matrix TOML (default: pgc/bench/default_matrix.toml)")
     p.add_argument("--role", nargs="+", metavar="ROLE", help="run only these roles of the matrix")
     p.add_argument("--out", default=None, help="output folder (default runs/bench-PRESET)")
+    p.add_argument("--scheduler", metavar="local:N | tcp://HOST:PORT",
+                   help="run each role as a task on Dask distributed: a local cluster of N worker processes, or "
+                        "an existing scheduler's address (default: in this process)")
+    p.add_argument("--threads", type=int, metavar="N", help="threads per worker task (default: cores / workers)")
     p.add_argument("--report", metavar="DIR", help="only re-render the plots, CSV and HTML from DIR/bench.json")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     p.add_argument("--json", action="store_true", help="print the records as JSON")
@@ -42,6 +46,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         out = Path(args.out or f"runs/bench-{args.preset}")
         registry, reporter = reporter_for(args)
-        records = run_bench(out, args.preset, args.config, args.role, registry=registry, reporter=reporter)
+        records = run_bench(out, args.preset, args.config, args.role, registry=registry, reporter=reporter,
+                            scheduler=args.scheduler, threads=args.threads)
     emit(args, records, text_tables(records) + f"\nrecords: {out}/bench.json  report: {out}/bench.html")
     return 0

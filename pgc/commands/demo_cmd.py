@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from pgc.commands._common import emit, reporter_for
+from pgc.commands._common import check_out_folder, emit, reporter_for, writing
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -28,9 +28,10 @@ def run(args: argparse.Namespace) -> int:
     from pgc.pipeline.demo import run_demo
     from pgc.pipeline.evaluate import VARIANTS
 
-    out = args.out or f"runs/demo-{args.preset}"
+    out = check_out_folder(args.out or f"runs/demo-{args.preset}")
     registry, reporter = reporter_for(args)
-    summary = run_demo(out, args.preset, args.config, seed=args.seed, reporter=reporter, registry=registry)
+    with writing(out, "pgc demo"):
+        summary = run_demo(out, args.preset, args.config, seed=args.seed, reporter=reporter, registry=registry)
     lines = [f"{v:>10}: " + "  ".join(f"{k}={x:.4f}" for k, x in summary[v].items()) for v in VARIANTS]
     emit(args, summary, "\n".join(lines) + f"\nreport: {out}/report.html")
     return 0

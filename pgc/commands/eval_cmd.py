@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from pgc.commands._common import add_run_options, emit, load_config, reporter_for
+from pgc.commands._common import (add_run_options, check_out_file, check_run, emit, load_config, reporter_for,
+                                  writing)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -23,10 +24,22 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pgc.pipeline.evaluate import VARIANTS, evaluate_run
+    from pathlib import Path
 
+    from pgc.errors import PGCDataError
+    from pgc.pipeline.evaluate import VARIANTS, evaluate_run, rendered_frames
+
+    check_run(args.run)
+    rendered_frames(Path(args.run))
+    if args.out:
+        check_out_file(args.out)
+    if not Path(args.gt).is_dir():
+        raise PGCDataError(f"--gt {args.gt}: not a folder; give a synthetic capture folder or a folder of "
+                           "frame_XXXX_CAMERA.png images")
     registry, reporter = reporter_for(args)
-    res = evaluate_run(args.run, args.gt, load_config(args, registry), reporter, args.out)
+    cfg = load_config(args, registry)
+    with writing(args.run, "pgc eval"):
+        res = evaluate_run(args.run, args.gt, cfg, reporter, args.out)
     lines = [f"{v:>10}: " + "  ".join(f"{k}={x:.4f}" for k, x in res[v].items() if k != "per_frame")
              for v in VARIANTS]
     emit(args, res, "\n".join(lines))

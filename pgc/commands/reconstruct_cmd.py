@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from pgc.commands._common import add_run_options, emit, load_config, reporter_for
+from pgc.commands._common import (add_run_options, check_not_inside, check_out_folder, emit, load_config,
+                                  reporter_for, writing)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -25,8 +26,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from pgc.pipeline.reconstruct import reconstruct
 
+    from pgc.io.capture import read_capture
+
+    out = check_out_folder(args.out)
+    check_not_inside(out, args.capture, "capture folder")
     registry, reporter = reporter_for(args)
-    asset = reconstruct(args.capture, args.out, load_config(args, registry), reporter)
+    cfg = load_config(args, registry)
+    read_capture(args.capture)  # every file checked (sizes, finite pixels, cameras) before any work
+    with writing(out, "pgc reconstruct"):
+        asset = reconstruct(args.capture, out, cfg, reporter)
     emit(args, {"asset": args.out, "figures": asset.figures},
          f"asset written to {args.out}: garment {len(asset.garment.vertices)} vertices, "
          f"{len(asset.gaussians)} Gaussians, BRDF '{asset.material.brdf}'")

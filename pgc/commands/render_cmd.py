@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from pgc.commands._common import add_run_options, emit, load_config, reporter_for
+from pgc.commands._common import add_run_options, check_run, emit, load_config, reporter_for, writing
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -26,12 +26,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from pgc.pipeline.render import render_run
 
+    check_run(args.run)
+    registry, reporter = reporter_for(args)
+    cfg = load_config(args, registry)
     light = None
     if args.light:
         from pgc.pipeline.render import envmap_light
 
         light = envmap_light(args.run, args.light)
-    registry, reporter = reporter_for(args)
-    out = render_run(args.run, load_config(args, registry), light, reporter, rotate_light=args.rotate_light)
+    with writing(args.run, "pgc render"):
+        out = render_run(args.run, cfg, light, reporter, rotate_light=args.rotate_light)
     emit(args, {"render": str(out)}, f"frames written to {out}")
     return 0

@@ -64,7 +64,10 @@ def run(args: argparse.Namespace) -> int:
         return _render_frames(args, reporter)
     if len(args.paths) != 1:
         raise PGCDataError(f"expected one output folder, got {args.paths}; usage:\n{USAGE}")
+    from pgc.commands._common import check_out_folder
     from pgc.synth.generate import generate, get_preset
+
+    check_out_folder(args.paths[0], option="OUT")
 
     preset = get_preset(args.preset, views=args.views, resolution=args.resolution, spp=args.spp,
                         framing=args.framing)

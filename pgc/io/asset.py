@@ -1,6 +1,7 @@
 """The garment asset directory, the output of ``pgc reconstruct``::
 
-    manifest.json    schema_version, pgc version, package versions, resolved config, figures, file list
+    manifest.json    schema_version, package versions, resolved config, figures, file list and hashes
+                     (no time stamp: the same inputs give byte-identical assets)
     garment.obj      garment rest mesh with UV atlas (seams kept) and face labels
     body.ply         full capture-pose mesh: positions float32, faces, face labels (body.obj if it has UVs)
     gaussians.ply    Gaussians bound to garment faces: 3DGS layout baked on the rest mesh + the binding
@@ -8,13 +9,15 @@
     material.json    {"brdf": name, "params": {...}}
     light.json       {"radiance": [r, g, b], "rotation_deg": deg[, "envmap": "light_envmap.exr"]}
 
-Every file is written atomically and the manifest last: a directory without a manifest is incomplete.
-Reading checks ``schema_version`` first: an unknown version fails with a clear message.
+Every file is written atomically and the manifest last, with the sha256 of every file (``hashes``): a
+directory without a manifest is incomplete, and reading refuses files that do not match their hashes (a write
+interrupted while overwriting an asset). Reading checks ``schema_version`` first: an unknown version fails
+with a clear message.
 """
 
 from __future__ import annotations
 
-import datetime
+import hashlib
 import importlib.metadata as metadata
 import json
 import os
@@ -71,17 +74,44 @@ def write_asset(path: str | os.PathLike, asset: GarmentAsset) -> None:
         files["envmap"] = light["envmap"] = "light_envmap.exr"
         imgio.write_exr(root / files["envmap"], asset.light.envmap)
     write_json(root / files["light"], light)
-    write_json(root / MANIFEST, {
+    write_json(root / MANIFEST, {  # last: it records the hashes that tie the files of this write together
         "schema_version": SCHEMA_VERSION,
-        "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "versions": package_versions(),
         "files": files,
+        "hashes": {key: file_hash(root / name) for key, name in files.items()},
         "counts": {"garment_vertices": len(asset.garment.vertices), "garment_faces": len(asset.garment.faces),
                    "gaussians": len(asset.gaussians), "sh_degree": asset.gaussians.sh_degree},
         "heldout_views": list(asset.heldout_views),
         "config": asset.config,
         "figures": asset.figures,
     })
+
+
+def file_hash(path: Path) -> str:
+    """sha256 (hex) of a file's bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        while block := f.read(1 << 20):
+            h.update(block)
+    return h.hexdigest()
+
+
+def verify_files(root: Path, manifest: dict[str, Any]) -> None:
+    """Refuse an asset folder whose files are missing or are not the ones its manifest was written with
+    (an interrupted overwrite, or files copied in from another asset)."""
+    hashes = manifest.get("hashes")
+    if not isinstance(hashes, dict):
+        raise PGCDataError(f"{root / MANIFEST}: no 'hashes' of the asset files (written by an older PGC, or "
+                           "edited); re-create the asset with pgc reconstruct")
+    for key, name in manifest["files"].items():
+        path = root / str(name)
+        if not path.is_file():
+            raise PGCDataError(f"{path}: file not found; the asset folder {root} is incomplete. Rerun pgc reconstruct "
+                               "(completed stages are reused)")
+        if hashes.get(key) != file_hash(path):
+            raise PGCDataError(f"{path}: does not match the hash recorded in {MANIFEST}: the folder mixes files of "
+                               "two writes (interrupted overwrite?) or the file was edited. Rerun pgc reconstruct "
+                               f"--out {root} (completed stages are reused)")
 
 
 def _load_json(path: Path) -> Any:
@@ -94,7 +124,7 @@ def _load_json(path: Path) -> Any:
 
 
 def read_manifest(path: str | os.PathLike) -> dict[str, Any]:
-    """The manifest of an asset directory, after checking its schema version."""
+    """The manifest of an asset directory, after checking its schema version and the hashes of its files."""
     root = Path(path)
     if not (root / MANIFEST).is_file():
         raise PGCDataError(f"{root}: no {MANIFEST}; not a PGC asset directory (or an incomplete write)")
@@ -106,6 +136,7 @@ def read_manifest(path: str | os.PathLike) -> dict[str, Any]:
                            "version that wrote it")
     if not isinstance(manifest.get("files"), dict):
         raise PGCDataError(f"{root / MANIFEST}: field 'files' must be an object naming the asset files")
+    verify_files(root, manifest)
     return manifest
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import tempfile
 from pathlib import Path
@@ -45,10 +46,31 @@ def atomic_open(path: str | os.PathLike, mode: str = "w", **kwargs: Any) -> Iter
 
 
 def write_json(path: str | os.PathLike, obj: Any) -> None:
-    """Write JSON atomically (UTF-8, indented, keys in insertion order)."""
+    """Write strict JSON atomically (UTF-8, indented, keys in insertion order).
+
+    Non-finite floats (NaN, +-inf), which JSON cannot hold, are written as ``null``.
+    """
+    text = json.dumps(finite_or_none(obj), indent=2, default=_json_default, allow_nan=False)
     with atomic_open(path, "w", encoding="utf-8") as f:
-        json.dump(obj, f, indent=2, default=_json_default)
-        f.write("\n")
+        f.write(text + "\n")
+
+
+def finite_or_none(obj: Any) -> Any:
+    """``obj`` with every non-finite float (also in numpy scalars and arrays) replaced by ``None``, containers
+    (dict, list, tuple) rebuilt; anything else unchanged."""
+    import numpy as np
+
+    if isinstance(obj, np.ndarray):
+        obj = obj.tolist()
+    elif isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: finite_or_none(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [finite_or_none(v) for v in obj]
+    return obj
 
 
 def write_text(path: str | os.PathLike, text: str) -> None:

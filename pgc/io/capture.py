@@ -224,6 +224,9 @@ def _check_layer_counts(d: _Doc, frames: list) -> None:
             missing = [i for i in range(len(frames)) if key not in frames[i]]
             raise d.fail(key, f"given for {len(have)} of {len(frames)} frames (missing in frames {missing[:8]}); "
                               "give it for every frame or for none")
+    for i, f in enumerate(frames):
+        if not isinstance(f.get("pgc_extras", {}), dict):
+            raise d.fail(f"frames[{i}].pgc_extras", "must be an object {layer: path}")
     layers = [tuple(sorted(f.get("pgc_extras", {}))) for f in frames]
     if len(set(layers)) > 1:
         raise d.fail("pgc_extras", f"frames list different ground-truth layers: {sorted(set(layers))}; "
@@ -364,7 +367,10 @@ def _read_light(d: _Doc, root: Path, raw: Any) -> Light | None:
         return None
     if not isinstance(raw, dict):
         raise d.fail("pgc_light", "must be an object {radiance, rotation_deg, envmap_path}")
-    radiance = np.asarray(raw.get("radiance", [1.0, 1.0, 1.0]), dtype=np.float64)
+    try:
+        radiance = np.asarray(raw.get("radiance", [1.0, 1.0, 1.0]), dtype=np.float64)
+    except (TypeError, ValueError):
+        radiance = np.zeros(0)
     if radiance.shape != (3,) or not np.all(np.isfinite(radiance)):
         raise d.fail("pgc_light.radiance", f"must be 3 finite numbers, got {raw.get('radiance')!r}")
     rotation = d.number(raw, "rotation_deg", "pgc_light", 0.0)

@@ -260,7 +260,15 @@ def read_colmap_model(sparse_dir: str | os.PathLike) -> tuple[dict[int, ColmapCa
             raise PGCDataError(f"{sparse_dir}: no {stem}.bin or {stem}.txt; is this a COLMAP sparse model folder "
                                "(e.g. sparse/0)?")
     cameras, images = out["cameras"], out["images"]
+    images_file = next(sparse_dir / f"images.{e}" for e in ("bin", "txt") if (sparse_dir / f"images.{e}").is_file())
     for img in images.values():
+        norm = float(np.linalg.norm(img.qvec))
+        if not (np.all(np.isfinite(img.qvec)) and norm > 1e-8):
+            raise PGCDataError(f"{images_file}: image {img.id} ('{img.name}') has the quaternion "
+                               f"{img.qvec.tolist()}, which is no rotation (zero or non-finite); fix QW QX QY QZ")
+        if not np.all(np.isfinite(img.tvec)):
+            raise PGCDataError(f"{images_file}: image {img.id} ('{img.name}') has a non-finite translation "
+                               f"{img.tvec.tolist()}; fix TX TY TZ")
         if img.camera_id not in cameras:
             raise PGCDataError(f"{sparse_dir}: image {img.id} ('{img.name}') references camera {img.camera_id}, "
                                f"but the model has {len(cameras)} camera(s) with ids {sorted(cameras)}")

@@ -46,6 +46,17 @@ _PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short":
               "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
 
 
+def _header_int(path: Path, text: str, line: str) -> int:
+    """A non-negative integer of a PLY header line, else a clear error."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise PGCDataError(f"{path}: header line '{line}': '{text}' is not a non-negative integer count")
+    return value
+
+
 def _logit(p: np.ndarray) -> np.ndarray:
     p = np.clip(np.asarray(p, dtype=np.float64), 1e-7, 1.0 - 1e-7)
     return np.log(p) - np.log1p(-p)
@@ -150,9 +161,11 @@ def _parse(path: Path) -> tuple[np.ndarray, int | None]:
         if parts[0] == "format":
             fmt = parts[1]
         elif parts[0] == "comment" and len(parts) == 3 and parts[1] == "pgc_sh_degree":
-            degree = int(parts[2])
+            degree = _header_int(path, parts[2], line)
         elif parts[0] == "element":
-            elements.append((parts[1], int(parts[2]), []))
+            if len(parts) != 3:
+                raise PGCDataError(f"{path}: header line '{line}' must be 'element NAME COUNT'")
+            elements.append((parts[1], _header_int(path, parts[2], line), []))
         elif parts[0] == "property":
             if not elements:
                 raise PGCDataError(f"{path}: property before any element in the header")
@@ -170,11 +183,18 @@ def _parse(path: Path) -> tuple[np.ndarray, int | None]:
             raise PGCDataError(f"{path}: element '{name}' has list properties; a Gaussian .ply holds only a "
                                "'vertex' element of scalar properties")
         order = "<" if fmt == "binary_little_endian" else ">"
+        names = [p for p, _ in props]
+        if len(set(names)) != len(names):
+            raise PGCDataError(f"{path}: element '{name}' repeats a property name ({names})")
         dtype = np.dtype([(p, order + t) for p, t in props])
         if name == "vertex":
             if fmt == "ascii":
-                text = raw[offset:].decode("ascii").split("\n")[:count]
-                values = np.array([row.split() for row in text], dtype=np.float64).reshape(count, len(props))
+                text = raw[offset:].decode("ascii", errors="replace").split("\n")[:count]
+                try:
+                    values = np.array([row.split() for row in text], dtype=np.float64).reshape(count, len(props))
+                except ValueError:
+                    raise PGCDataError(f"{path}: the ASCII body does not hold {count} rows of {len(props)} numbers "
+                                       "as the header says") from None
                 data = np.empty(count, dtype=dtype.newbyteorder("="))
                 for i, (p, _) in enumerate(props):
                     data[p] = values[:, i]

@@ -121,7 +121,7 @@ def read_exr(path: str | os.PathLike) -> np.ndarray:
         with OpenEXR.File(str(path), separate_channels=True) as f:
             channels = {name: np.asarray(ch.pixels, dtype=np.float32) for name, ch in f.channels().items()}
     except Exception as exc:  # OpenEXR raises plain RuntimeError on bad files
-        raise PGCDataError(f"{path}: cannot read EXR ({exc})") from exc
+        raise _bad_exr(path, exc) from None
     if len(channels) == 1:
         return next(iter(channels.values()))
     order = [c for c in ("R", "G", "B", "A") if c in channels]
@@ -129,6 +129,11 @@ def read_exr(path: str | os.PathLike) -> np.ndarray:
         raise PGCDataError(f"{path}: EXR channels {sorted(channels)} are not a subset of R, G, B, A "
                            "(or one single channel)")
     return np.stack([channels[c] for c in order], axis=-1)
+
+
+def _bad_exr(path: Path, exc: Exception) -> PGCDataError:
+    return PGCDataError(f"{path}: the file exists ({path.stat().st_size} bytes) but is not a readable OpenEXR image "
+                        f"(corrupt, truncated or another format; the decoder said: {exc}); re-export it as EXR")
 
 
 def write_exr(path: str | os.PathLike, array: np.ndarray) -> None:
@@ -175,16 +180,24 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
         lut = srgb_to_linear(np.arange(1 << bits, dtype=np.float64) / ((1 << bits) - 1))
         a = lut[codes]
     else:
-        from PIL import Image
+        from PIL import Image, UnidentifiedImageError
 
-        with Image.open(path) as im:
-            a = srgb_to_linear(np.asarray(im.convert("RGB"), dtype=np.float64) / 255.0)
+        try:
+            with Image.open(path) as im:
+                a = srgb_to_linear(np.asarray(im.convert("RGB"), dtype=np.float64) / 255.0)
+        except (UnidentifiedImageError, OSError, ValueError) as exc:
+            raise PGCDataError(f"{path}: cannot decode the image ({exc}); re-export it") from None
     if a.ndim == 2 or a.shape[2] == 2:  # grey, or grey + alpha
         a = np.repeat(a[..., :1] if a.ndim == 3 else a[..., None], 3, axis=2)
     if a.shape[2] == 4:
         a = a[..., :3]
     if a.shape[2] != 3:
         raise PGCDataError(f"{path}: expected a colour image, got {a.shape[2]} channels")
+    bad = int(np.count_nonzero(~np.isfinite(a)))
+    if bad:
+        row, col = np.argwhere(~np.isfinite(a))[0, :2]
+        raise PGCDataError(f"{path}: {bad} non-finite values (NaN or Inf; first at pixel x={col} y={row}); every "
+                           "pixel must be a finite colour: fix or re-export the image")
     return np.ascontiguousarray(a, dtype=np.float32)
 
 
@@ -269,15 +282,18 @@ def image_size(path: str | os.PathLike) -> tuple[int, int]:
     if _suffix(path) in EXR_SUFFIXES:
         import OpenEXR
 
-        with OpenEXR.File(str(path), header_only=True) as f:
-            (x0, y0), (x1, y1) = f.header()["dataWindow"]
+        try:
+            with OpenEXR.File(str(path), header_only=True) as f:
+                (x0, y0), (x1, y1) = f.header()["dataWindow"]
+        except Exception as exc:  # OpenEXR raises plain RuntimeError on bad files
+            raise _bad_exr(path, exc) from None
         return int(x1 - x0 + 1), int(y1 - y0 + 1)
     from PIL import Image
 
     try:
         with Image.open(path) as im:
             return im.size
-    except OSError as exc:
+    except (OSError, ValueError) as exc:
         raise PGCDataError(f"{path}: cannot read image ({exc})") from exc
 
 

@@ -18,13 +18,19 @@ def masked_mean(values: np.ndarray, mask: np.ndarray | None, what: str) -> float
     """Mean of ``values`` (H, W) or (H, W, C) weighted by ``mask`` (H, W) in [0, 1] (plain mean if None)."""
     if mask is None:
         return float(np.mean(values))
-    weights = np.asarray(mask, np.float64)
+    weights = require_nonempty(mask, what)
     if values.ndim == 3:
         weights = np.broadcast_to(weights[..., None], values.shape)
-    total = weights.sum()
-    if total <= 0:
+    return float((values * weights).sum() / weights.sum())
+
+
+def require_nonempty(mask: np.ndarray, what: str) -> np.ndarray:
+    """``mask`` as float64 if it has positive weight somewhere, else the error every metric gives for an empty
+    (all-zero) mask: nothing to measure."""
+    weights = np.asarray(mask, np.float64)
+    if not weights.sum() > 0:
         raise PGCDataError(f"{what}: the mask is empty (all zero); nothing to measure")
-    return float((values * weights).sum() / total)
+    return weights
 
 
 def mask_bbox(mask: np.ndarray, min_size: int = 1) -> tuple[slice, slice]:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pgc.metrics.common import display_255
+from pgc.metrics.common import display_255, require_nonempty
 
 T1, T2, T3, T4, LAMBDA = 0.85, 160.0, 200.0, 200.0, 0.03
 SCALES, ORIENTATIONS, MIN_WAVELENGTH, MULT, SIGMA_ON_F, D_THETA_ON_SIGMA, NOISE_K = 4, 4, 6.0, 2.0, 0.55, 1.2, 2.0
@@ -117,8 +117,10 @@ def fsim(pred: np.ndarray, target: np.ndarray, mask: np.ndarray | None = None,
 
     1 for identical images, lower for worse; with ``mask`` (H, W) both sums are weighted by the mask
     averaged and subsampled like the images. Images without any phase congruency (flat) give the plain mean
-    of the similarity map (the reference's 0 / 0).
+    of the similarity map (the reference's 0 / 0). An all-zero mask is an error, as in every metric.
     """
+    if mask is not None:
+        require_nonempty(mask, "fsim")
     f = downsample_factor(*pred.shape[:2])
     yiq = [_block_average(display_255(im) @ _YIQ.T, f) for im in (pred, target)]
     pc1, pc2 = (phase_congruency(c[..., 0]) for c in yiq)

@@ -1,5 +1,6 @@
-"""The pipeline: stages (mesh -> splats -> albedo -> material -> asset; animate -> render -> compose -> eval).
+"""The pipeline: stages (mesh -> garment -> fit_splats -> base_color -> material -> asset; animate -> render ->
+eval), cached by content (docs/architecture.md, "Stages: one name each").
 
-Each stage's options model lives in a light module ``settings_<stage>.py`` exposing ``SETTINGS``
-(stage name -> :class:`pgc.options.Options` subclass); :func:`pgc.config.stage_settings` gathers them.
+The options of the pipeline-only stages live in light modules ``settings_<stage>.py``; :data:`pgc.config.STAGES`
+names every stage's options model.
 """

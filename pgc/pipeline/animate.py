@@ -19,9 +19,14 @@ from pgc.config import RunConfig
 from pgc.errors import PGCDataError
 from pgc.events import Reporter
 from pgc.io.atomic import write_json
+from pgc.io.timings import split_timings, write_timings
 from pgc.pipeline.cache import StageCache, array_key, content_key, file_key
 from pgc.pipeline.stage_io import save_npz
 from pgc.types import BodyMotion
+
+
+CODE_VERSION = "2"
+"""Version of the code computing the animate stage (part of its cache key)."""
 
 
 def source_capture(asset_config: dict) -> Path | None:
@@ -60,8 +65,8 @@ def animate(asset_dir: str | Path, motion_spec: str, out: str | Path, cfg: RunCo
     capture = Path(capture_dir) if capture_dir else source_capture(asset.config)
     settings = cfg.stage("animate")
     motion = resolve_motion(motion_spec, capture, settings.seconds)
-    key = content_key("animate", file_key(asset_dir / "garment.obj"), motion_spec, settings,
-                      cfg.role_key("simulator"), array_key(motion.vertices))
+    key = content_key("animate", file_key(asset_dir / "manifest.json"), motion_spec, settings,
+                      cfg.role_key("simulator"), array_key(motion.vertices), array_key(motion.faces), motion.fps)
 
     def compute(folder: Path):
         sim = cfg.create("simulator").simulate(asset.garment, motion, reporter)
@@ -69,14 +74,15 @@ def animate(asset_dir: str | Path, motion_spec: str, out: str | Path, cfg: RunCo
         return sim.vertices, sim.figures
 
     result = StageCache(out / "stages").run("animate", key, compute,
-                                            lambda f: np.load(f / "garment.npz")["vertices"])
+                                            lambda f: np.load(f / "garment.npz")["vertices"], CODE_VERSION)
     save_npz(out / "garment.npz", vertices=result.value, faces=asset.garment.faces)
     save_npz(out / "body.npz", vertices=motion.vertices, faces=motion.faces)
-    write_json(out / "run.json", {
+    figures, timings = split_timings(StageCache(out / "stages").figures("animate"))
+    write_timings(out, timings or {})
+    write_json(out / "run.json", {  # last: a run folder with a run.json is complete
         "asset": str(asset_dir.resolve()), "capture": None if capture is None else str(capture.resolve()),
         "motion": motion_spec, "fps": motion.fps, "frames": motion.num_frames,
-        "simulator": cfg.roles["simulator"].name,
-        "figures": StageCache(out / "stages").figures("animate")})
+        "simulator": cfg.roles["simulator"].name, "figures": figures})
     return out
 
 

@@ -1,15 +1,19 @@
 """On-disk stage cache keyed by content hash: long pipelines resume where they stopped.
 
-A stage's key hashes everything that decides its result: its options, the implementation chosen, the keys
-of the stages it reads and a format version. Its outputs are written into a temporary folder that is
-renamed into place only when complete, so an interrupted run never leaves a half-written stage; the next
-run recomputes exactly the stages whose key changed or that never finished.
+A stage's key hashes everything that decides its result: its options, the implementation chosen, what it
+reads (the content of upstream outputs: :meth:`StageCache.output_key`, not only upstream keys), the
+``code_version`` of the code computing it and a format version. Its outputs are written into a temporary
+folder ``.<stage>.<pid>.*`` that is renamed into place only when complete, so an interrupted run never leaves
+a half-written stage; ``stage.json`` records the hash of the outputs, and a stage whose files no longer
+match it (edited, truncated) is recomputed. The next run recomputes exactly the stages whose key changed or
+that never finished, and removes temporary folders left by processes that are no longer alive.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import os
 import shutil
 import tempfile
 from dataclasses import dataclass
@@ -19,7 +23,10 @@ from typing import Any, Callable, Generic, TypeVar
 from pgc.io.atomic import write_json
 
 T = TypeVar("T")
-CACHE_FORMAT = 1
+CACHE_FORMAT = 2
+STAGE_META = "stage.json"
+SKIPPED_NAMES = (".pgc.lock",)
+"""Files never hashed by :func:`file_key`: the folder lock (:mod:`pgc.io.lock`) changes on every run."""
 
 
 def content_key(*parts: Any) -> str:
@@ -28,11 +35,14 @@ def content_key(*parts: Any) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def file_key(path: str | Path, chunk: int = 1 << 20) -> str:
-    """sha256 (first 16 hex digits) of a file's bytes, or of every file below a folder (names included)."""
+def file_key(path: str | Path, chunk: int = 1 << 20, exclude: tuple[str, ...] = ()) -> str:
+    """sha256 (first 16 hex digits) of a file's bytes, or of every file below a folder (names included;
+    lock files and ``exclude`` names at the top of the folder left out)."""
     path = Path(path)
     h = hashlib.sha256()
-    files = [path] if path.is_file() else sorted(p for p in path.rglob("*") if p.is_file())
+    files = [path] if path.is_file() else sorted(
+        p for p in path.rglob("*") if p.is_file() and p.name not in SKIPPED_NAMES
+        and p.relative_to(path).parts[0] not in exclude)
     for f in files:
         h.update(str(f.relative_to(path) if f != path else f.name).encode())
         with open(f, "rb") as fh:
@@ -68,7 +78,8 @@ class StageResult(Generic[T]):
 
 
 class StageCache:
-    """Stages stored below ``root/<stage>/`` with a ``stage.json`` recording the key and figures."""
+    """Stages stored below ``root/<stage>/`` with a ``stage.json`` recording the key, the code version, the
+    hash of the outputs and the figures."""
 
     def __init__(self, root: str | Path) -> None:
         self.root = Path(root)
@@ -76,33 +87,66 @@ class StageCache:
     def folder(self, stage: str) -> Path:
         return self.root / stage
 
-    def cached_key(self, stage: str) -> str | None:
-        meta = self.folder(stage) / "stage.json"
+    def _meta(self, stage: str) -> dict[str, Any] | None:
+        meta = self.folder(stage) / STAGE_META
         if not meta.is_file():
             return None
         try:
-            return json.loads(meta.read_text())["key"]
-        except (json.JSONDecodeError, KeyError):
+            data = json.loads(meta.read_text(encoding="utf-8"))
+        except (json.JSONDecodeError, UnicodeDecodeError):
             return None
+        return data if isinstance(data, dict) else None
+
+    def cached_key(self, stage: str, code_version: str = "") -> str | None:
+        """The key of the stored stage, or None when there is none, it was computed by another
+        ``code_version``, or its files do not match its record."""
+        meta = self._meta(stage)
+        if meta is None or not isinstance(meta.get("key"), str) or meta.get("code_version", "") != code_version:
+            return None
+        if meta.get("outputs") != file_key(self.folder(stage), exclude=(STAGE_META,)):
+            return None
+        return meta["key"]
+
+    def output_key(self, stage: str) -> str:
+        """The hash of a finished stage's output files (for the keys of the stages that read them)."""
+        meta = self._meta(stage)
+        if meta is None or "outputs" not in meta:
+            raise KeyError(f"stage '{stage}' has not been computed in {self.root}")
+        return meta["outputs"]
 
     def figures(self, stage: str) -> dict[str, Any]:
-        meta = self.folder(stage) / "stage.json"
-        return json.loads(meta.read_text()).get("figures", {}) if meta.is_file() else {}
+        meta = self._meta(stage)
+        return meta.get("figures", {}) if meta else {}
+
+    def clean_orphans(self, stage: str) -> list[Path]:
+        """Remove ``.<stage>.<pid>.*`` temporary folders whose process is gone; returns what was removed."""
+        removed = []
+        for tmp in self.root.glob(f".{stage}.*"):
+            parts = tmp.name.split(".")
+            pid = int(parts[2]) if len(parts) > 3 and parts[2].isdigit() else None
+            if tmp.is_dir() and (pid is None or not _alive(pid)):
+                shutil.rmtree(tmp, ignore_errors=True)
+                removed.append(tmp)
+        return removed
 
     def run(self, stage: str, key: str, compute: Callable[[Path], tuple[T, dict[str, Any]]],
-            load: Callable[[Path], T]) -> StageResult[T]:
-        """Load ``stage`` if its stored key equals ``key``; else ``compute(tmp_folder)`` -> (value, figures).
+            load: Callable[[Path], T], code_version: str = "") -> StageResult[T]:
+        """Load ``stage`` if its stored key equals ``key`` (with ``code_version``, a string the caller changes
+        whenever the code computing the stage changes its results); else ``compute(tmp_folder)`` ->
+        (value, figures).
 
         ``compute`` writes its files into the folder it is given; ``load(folder)`` reads them back.
         """
         final = self.folder(stage)
-        if self.cached_key(stage) == key:
+        if self.cached_key(stage, code_version) == key:
             return StageResult(load(final), key, True, final)
         self.root.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{stage}.", dir=self.root))
+        self.clean_orphans(stage)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{stage}.{os.getpid()}.", dir=self.root))
         try:
             value, figures = compute(tmp)
-            write_json(tmp / "stage.json", {"stage": stage, "key": key, "figures": figures})
+            write_json(tmp / STAGE_META, {"stage": stage, "key": key, "code_version": code_version,
+                                          "outputs": file_key(tmp, exclude=(STAGE_META,)), "figures": figures})
             if final.exists():
                 shutil.rmtree(final)
             tmp.rename(final)
@@ -110,3 +154,14 @@ class StageCache:
             if tmp.exists():
                 shutil.rmtree(tmp, ignore_errors=True)
         return StageResult(value, key, False, final)
+
+
+def _alive(pid: int) -> bool:
+    """Whether a process ``pid`` exists (a pid reused by another process counts as alive: nothing is lost)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True

@@ -32,6 +32,7 @@ def demo_config(preset: str, user_config: str | Path | None = None, registry=Non
 def run_demo(out: str | Path, preset: str = "default", user_config: str | Path | None = None,
              motions: tuple[str, ...] = PAPER_MOTIONS, seed: int = 0, reporter: Reporter | None = None,
              registry=None) -> dict[str, Any]:
+    from pgc.io.timings import read_timings
     from pgc.pipeline.animate import animate
     from pgc.pipeline.evaluate import evaluate_run
     from pgc.pipeline.reconstruct import reconstruct
@@ -56,7 +57,7 @@ def run_demo(out: str | Path, preset: str = "default", user_config: str | Path |
     if not (marker.is_file() and marker.read_text() == synth_key):
         timed("synth", lambda: generate(capture, preset=preset, seed=seed, reporter=reporter))
         marker.write_text(synth_key)
-    asset = timed("reconstruct", lambda: reconstruct(capture, out / "asset", cfg, reporter))
+    timed("reconstruct", lambda: reconstruct(capture, out / "asset", cfg, reporter))
     results: dict[str, Any] = {}
     decisions: list = []
 
@@ -73,7 +74,7 @@ def run_demo(out: str | Path, preset: str = "default", user_config: str | Path |
         timed("render", lambda: render_run(run, cfg, reporter=reporter, decide=decide_once))
         results[motion] = timed("eval", lambda: evaluate_run(run, capture, cfg, reporter))
     summary = summarise(results)
-    summary.update(preset=preset, seconds=timings, stages=asset.figures.get("seconds", {}),
+    summary.update(preset=preset, seconds=timings, stages=read_timings(out / "asset").get("seconds", {}),
                    config=cfg.to_dict())
     write_json(out / "metrics.json", summary)
     write_report(out, summary, results)

@@ -27,12 +27,47 @@ VARIANTS = {"hybrid": "hybrid", "3dgs_only": "near", "pbr_only": "pbr"}
 """Metric key -> the render layer it evaluates."""
 
 
+RENDER_INPUTS = "inputs.json"
+"""Written into ``RUN/render/`` by ``pgc render``: the hashes of the simulation the frames were rendered from."""
+
+
+def render_inputs(run_dir: Path) -> dict[str, str]:
+    """Content hashes of the run files a render depends on (the simulated garment and the body motion)."""
+    from pgc.pipeline.cache import file_key
+
+    return {name: file_key(run_dir / name) for name in ("garment.npz", "body.npz")}
+
+
 def rendered_frames(run_dir: Path) -> tuple[dict[str, Any], list[int]]:
+    """The render metadata and frame numbers of a run, after checking that they are well-formed, that every
+    frame file is there and that they were rendered from the run's current simulation."""
     meta_path = run_dir / "render" / "render.json"
+    fix = f"run 'pgc render {run_dir}' (again)"
     if not meta_path.is_file():
         raise PGCDataError(f"{run_dir}: no rendered frames (render/render.json); run 'pgc render {run_dir}' first")
-    meta = json.loads(meta_path.read_text())
-    return meta, list(meta["frames"])
+    try:
+        meta = json.loads(meta_path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise PGCDataError(f"{meta_path}: malformed JSON ({exc}); {fix}") from None
+    frames = meta.get("frames") if isinstance(meta, dict) else None
+    if not isinstance(frames, list) or not frames or not all(isinstance(t, int) and t >= 0 for t in frames):
+        raise PGCDataError(f"{meta_path}: field 'frames' must be a non-empty list of frame numbers; {fix}")
+    cameras = meta.get("cameras")
+    if not isinstance(cameras, list) or not cameras or not all(isinstance(c, str) for c in cameras):
+        raise PGCDataError(f"{meta_path}: field 'cameras' must be a non-empty list of camera names; {fix}")
+    missing = [t for t in frames if not (run_dir / "render" / f"frame_{t:04d}.npz").is_file()]
+    if missing:
+        raise PGCDataError(f"{run_dir / 'render'}: frames {missing[:8]} listed in render.json are missing; {fix}")
+    recorded = meta.get("inputs")
+    if recorded is None and (run_dir / "render" / RENDER_INPUTS).is_file():
+        try:
+            recorded = json.loads((run_dir / "render" / RENDER_INPUTS).read_text(encoding="utf-8"))
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise PGCDataError(f"{run_dir / 'render' / RENDER_INPUTS}: malformed JSON ({exc}); {fix}") from None
+    if recorded is not None and recorded != render_inputs(run_dir):
+        raise PGCDataError(f"{run_dir / 'render'}: the frames were rendered from an earlier simulation of this run "
+                           f"(garment.npz/body.npz changed since, e.g. re-animated with another motion); {fix}")
+    return meta, list(frames)
 
 
 def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], camera_names: list[str],

@@ -25,6 +25,10 @@ from pgc.pipeline.settings_garment import GarmentSettings
 from pgc.pipeline.stage_io import load_gaussians, load_mesh, save_gaussians, save_mesh
 from pgc.types import GarmentAsset, Light, Material, Mesh
 
+CODE_VERSIONS = {"mesh": "2", "garment": "2", "fit_splats": "3", "base_color": "2", "material": "2"}
+"""Version of the code computing each stage, part of its cache key: raise one when that stage's code changes
+what it computes, so no run reuses a result made by older code."""
+
 
 def extract_garment(full: Mesh, garment_ids: list[int], settings: GarmentSettings) -> tuple[Mesh, np.ndarray]:
     """The garment faces of ``full`` as one clean piece with its own UV atlas (xatlas); without pymeshlab and
@@ -44,6 +48,7 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
     """Run every stage (reusing cached ones) and write the asset to ``out``."""
     from pgc.io.asset import write_asset
     from pgc.io.capture import read_capture
+    from pgc.io.timings import split_timings, write_timings
 
     reporter = reporter or Reporter.silent()
     out = Path(out)
@@ -66,11 +71,11 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
         save_mesh(folder / "mesh.npz", rec.mesh)
         return rec.mesh, rec.figures
 
-    full = timed("mesh", lambda: cache.run("mesh", mesh_key, compute_mesh,
-                                           lambda f: load_mesh(f / "mesh.npz")))
+    full = timed("mesh", lambda: cache.run("mesh", mesh_key, compute_mesh, lambda f: load_mesh(f / "mesh.npz"),
+                                           CODE_VERSIONS["mesh"]))
     # 2. the garment sub-mesh with its own UV atlas (the simulator's rest shape and the texture's domain)
     garment_settings = cfg.stage("garment")
-    garment_key = content_key("garment", mesh_key, garment_settings, capture.garment_label_ids)
+    garment_key = content_key("garment", cache.output_key("mesh"), garment_settings, capture.garment_label_ids)
 
     def compute_garment(folder: Path):
         garment, sel = extract_garment(full.value, capture.garment_label_ids, garment_settings)
@@ -81,11 +86,13 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
     def load_garment(folder: Path):
         return load_mesh(folder / "garment.npz"), np.load(folder / "selection.npy")
 
-    garment, sel = timed("garment", lambda: cache.run("garment", garment_key, compute_garment, load_garment)).value
+    garment, sel = timed("garment", lambda: cache.run("garment", garment_key, compute_garment, load_garment,
+                                                      CODE_VERSIONS["garment"])).value
 
     # 3. the splat fit
     splat_settings = cfg.stage("fit_splats")
-    splat_key = content_key("fit_splats", mesh_key, cfg.role_key("splat_renderer"), splat_settings)
+    splat_key = content_key("fit_splats", capture_key, cache.output_key("mesh"), cfg.role_key("splat_renderer"),
+                            splat_settings)
 
     def compute_splats(folder: Path):
         fit = cfg.create("splat_renderer").fit(capture, full.value, splat_settings, reporter)
@@ -96,8 +103,8 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
     def load_splats(folder: Path):
         return load_gaussians(folder / "gaussians_full.npz"), json.loads((folder / "heldout_views.json").read_text())
 
-    full_gaussians, heldout_views = timed("fit_splats", lambda: cache.run("fit_splats", splat_key, compute_splats,
-                                                                          load_splats)).value
+    full_gaussians, heldout_views = timed("fit_splats", lambda: cache.run(
+        "fit_splats", splat_key, compute_splats, load_splats, CODE_VERSIONS["fit_splats"])).value
     gaussians = garment_gaussians(full_gaussians, sel)
 
     # 4. base colour
@@ -105,8 +112,9 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
     estimator = cfg.create("albedo_estimator")
     from pgc.albedo.texture_stage import STAGE_VERSION
 
-    tex_key = content_key("base_color", STAGE_VERSION, garment_key, cfg.role_key("albedo_estimator"),
-                          estimator.fingerprint, tex_settings)
+    tex_key = content_key("base_color", STAGE_VERSION, capture_key, cache.output_key("mesh"),
+                          cache.output_key("garment"), cfg.role_key("albedo_estimator"), estimator.fingerprint,
+                          tex_settings)
 
     def compute_texture(folder: Path):
         from pgc.albedo.texture_stage import build_base_color
@@ -118,11 +126,14 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
         return res.texture, res.figures
 
     texture = timed("base_color", lambda: cache.run("base_color", tex_key, compute_texture,
-                                                    lambda f: np.load(f / "base_color.npy")))
+                                                    lambda f: np.load(f / "base_color.npy"),
+                                                    CODE_VERSIONS["base_color"]))
 
     # 5. material and light
     mat_settings = cfg.stage("material")
-    mat_key = content_key("material", tex_key, cfg.role_key("pbr_renderer"), cfg.role_key("brdf"), mat_settings)
+    mat_key = content_key("material", capture_key, cache.output_key("mesh"), cache.output_key("garment"),
+                          cache.output_key("base_color"), cfg.role_key("pbr_renderer"), cfg.role_key("brdf"),
+                          mat_settings)
 
     def compute_material(folder: Path):
         renderer = cfg.create("pbr_renderer")
@@ -139,18 +150,19 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
         d = json.loads((folder / "material.json").read_text())
         return Material(d["brdf"], d["params"], texture.value), Light(np.asarray(d["light"]["radiance"]))
 
-    material = timed("material", lambda: cache.run("material", mat_key, compute_material, load_material))
+    material = timed("material", lambda: cache.run("material", mat_key, compute_material, load_material,
+                                                   CODE_VERSIONS["material"]))
     mat, light = material.value
     mat.base_color = texture.value
 
-    figures = {name: cache.figures(name) for name in ("mesh", "garment", "fit_splats", "base_color", "material")}
-    figures["seconds"] = timings
+    figures, stage_timings = split_timings({name: cache.figures(name) for name in CODE_VERSIONS})
     figures["gaussians_garment"] = len(gaussians)
     asset = GarmentAsset(garment=garment, body=full.value, gaussians=gaussians, material=mat, light=light,
                          heldout_views=heldout_views,
                          config=dict(cfg.to_dict(), source={"capture": str(Path(capture_dir).resolve())}),
                          figures=figures)
     write_asset(out, asset)
+    write_timings(out, {"seconds": timings, "stages": stage_timings or {}})
     return asset
 
 

@@ -31,7 +31,7 @@ from pgc.splats.binding import bind
 from pgc.types import Camera, Capture, GarmentAsset, Light, Mesh
 
 
-RENDER_VERSION = 2
+RENDER_VERSION = "3"
 """Version of the code that computes the render stage: part of its cache key, raised whenever that code
 changes what it writes."""
 
@@ -181,6 +181,7 @@ def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
     all motions of its asset."""
     from pgc.io.asset import read_asset
     from pgc.io.capture import read_capture
+    from pgc.pipeline.evaluate import render_inputs
 
     reporter = reporter or Reporter.silent()
     run_dir = Path(run_dir)
@@ -194,7 +195,7 @@ def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
     settings = cfg.stage("render")
     renderer = HybridRenderer(asset, cfg)
     run_light = light or asset.light
-    key = content_key("render", RENDER_VERSION, file_key(run_dir / "garment.npz"),
+    key = content_key("render", file_key(run_dir / "garment.npz"),
                       file_key(Path(meta["asset"]) / "manifest.json"), settings, rotate_light,
                       [cfg.role_key(r) for r in ("splat_renderer", "pbr_renderer", "filter")],
                       {"radiance": run_light.radiance.tolist(), "rotation": run_light.rotation_deg,
@@ -218,9 +219,10 @@ def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
                 save_npz(folder / f"frame_{t:04d}.npz", **{k: np.stack([p[k] for p in per_cam]) for k in per_cam[0]})
                 st.progress((i + 1) * len(cameras))
         meta_out = {"frames": frames, "cameras": [c.name for c in cameras], **kernel.to_json(),
+                    "inputs": render_inputs(run_dir),
                     "light": {"radiance": run_light.radiance.tolist(), "envmap": run_light.envmap is not None,
                               "rotating": rotate_light}}
         write_json(folder / "render.json", meta_out)
         return meta_out, {"kernel_size": kernel.kernel_size, "frames": len(frames), "views": len(cameras)}
 
-    return StageCache(run_dir).run("render", key, compute, lambda f: None).folder
+    return StageCache(run_dir).run("render", key, compute, lambda f: None, RENDER_VERSION).folder

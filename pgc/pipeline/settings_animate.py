@@ -8,5 +8,3 @@ from pgc.options import Options
 class AnimateSettings(Options):
     seconds: float | None = Field(None, gt=0, description="motion length; None: the motion's own length")
 
-
-SETTINGS = {"animate": AnimateSettings}

@@ -11,5 +11,3 @@ class BaseColorSettings(Options):
     num_views: int = Field(10, ge=1)
     """Views merged into the texture (paper: 10), chosen greedily for coverage."""
 
-
-SETTINGS = {"base_color": BaseColorSettings}

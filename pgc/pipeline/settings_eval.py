@@ -8,5 +8,3 @@ from pgc.options import Options
 class EvalSettings(Options):
     gt_spp: int = Field(64, ge=1, description="path-tracing samples of the ground-truth renders")
 
-
-SETTINGS = {"eval": EvalSettings}

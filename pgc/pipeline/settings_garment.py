@@ -17,5 +17,3 @@ class GarmentSettings(Options):
                                                                   "atlas is packed for (px)")
     uv_padding: int = Field(2, ge=0, le=64, description="texels between the garment's UV charts")
 
-
-SETTINGS = {"garment": GarmentSettings}

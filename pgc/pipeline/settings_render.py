@@ -27,5 +27,3 @@ class RenderSettings(Options):
         "weighted by the Gaussians' alpha"))
     body_occludes: bool = Field(True, description="the body hides the garment layers where it is in front")
 
-
-SETTINGS = {"render": RenderSettings}

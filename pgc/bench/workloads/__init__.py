@@ -13,18 +13,6 @@ from typing import Any, Callable
 from pgc.bench.matrix import Run, expand
 from pgc.bench.records import make_record
 
-WORKLOADS: dict[str, str] = {
-    "reconstructor": "pgc.bench.workloads.reconstructor",
-    "splat_renderer": "pgc.bench.workloads.splat",
-    "brdf": "pgc.bench.workloads.brdf",
-    "pbr_renderer": "pgc.bench.workloads.pbr",
-    "albedo_estimator": "pgc.bench.workloads.albedo",
-    "simulator": "pgc.bench.workloads.simulator",
-    "filter": "pgc.bench.workloads.filter",
-    "metric": "pgc.bench.workloads.metric",
-}
-"""Role -> module of its workload (imported only when the role runs)."""
-
 
 @dataclass
 class Context:

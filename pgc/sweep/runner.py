@@ -1,0 +1,58 @@
+"""Run a sweep file: validate, plan the tasks still to do, run them, gather the records and write the table."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+from pgc.events import Reporter
+from pgc.sweep.engine import run_tasks
+from pgc.sweep.spec import Sweep, load_sweep
+from pgc.sweep.work import Unit, plan
+
+
+def records_of(sweep: Sweep, units: list[Unit], results: dict[str, Any], failed: dict[str, str]) -> list[dict]:
+    """One record per unit and variant (per unit when the sweep has no 'eval'); a unit whose task failed gives
+    one record with ``failed`` and no metrics."""
+    out = []
+    for u in units:
+        s = u.scene.synth or {}
+        base = {"sweep": sweep.name, "scene": u.scene.name, "configuration": u.configuration.name, "motion": u.motion,
+                "variant": None, **{k: s.get(k) for k in ("preset", "garment", "fabric", "seed", "framing")},
+                "capture": u.capture}
+        bad = next((failed[k] for k in (u.asset_task, u.run_task) if k in failed), None)
+        if bad is not None:
+            out.append(base | {"metrics": {}, "figures": {}, "seconds": {}, "failed": bad})
+            continue
+        asset = results[u.asset_task]
+        run = results.get(u.run_task) if u.run_task else None
+        base |= {"brdf": asset["brdf"], "figures": asset["figures"], "asset": asset["asset"],
+                 "run": run["run"] if run else None,
+                 "seconds": {"reconstruct": asset["seconds"], **(run["seconds"] if run else {})}}
+        if run and run["metrics"]:
+            out += [base | {"variant": v, "metrics": m} for v, m in run["metrics"].items()]
+        else:
+            out.append(base | {"metrics": dict(asset["figures"])})
+    return out
+
+
+def run_sweep(path: str | os.PathLike, out: str | os.PathLike | None = None, scheduler: str | None = None,
+              reporter: Reporter | None = None, registry: Any = None, retries: int = 2,
+              threads: int | None = None) -> dict[str, Any]:
+    """Run the sweep file ``path`` into ``out`` (default ``runs/sweep-NAME``); returns ``{"records", "failed",
+    "computed", "out", "table"}`` (``computed``: how many tasks ran now; 0 on a rerun of a finished sweep;
+    ``table``: the file's :class:`~pgc.sweep.spec.Table`)."""
+    from pgc.io.lock import FolderLock
+    from pgc.sweep.table import write_outputs
+
+    sweep = load_sweep(path, registry)
+    out = Path(out or f"runs/sweep-{sweep.name}")
+    with FolderLock(out, "pgc sweep"):
+        tasks, units, done = plan(sweep, out)
+        outcome = run_tasks(tasks, scheduler, reporter, retries=retries, threads=threads, name="sweep")
+        results = done | outcome.results
+        records = records_of(sweep, units, results, outcome.failed)
+        write_outputs(out, sweep.name, records, sweep.table, outcome.failed)
+    return {"records": records, "failed": outcome.failed, "computed": len(outcome.results), "out": str(out),
+            "table": sweep.table}

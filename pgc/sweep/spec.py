@@ -1,0 +1,241 @@
+"""The sweep file: scenes x configurations x steps, and the table to build (format in docs/sweeps.md).
+
+Everything is checked before any work: an unknown table or key, a bad value, a configuration the run
+configuration rejects, a step or motion that does not exist raises :class:`PGCConfigError` naming the file
+and the key.
+"""
+
+from __future__ import annotations
+
+import itertools
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from pgc import config as config_mod
+from pgc.errors import PGCConfigError
+
+STEPS = ("reconstruct", "animate", "render", "eval")
+"""The steps in pipeline order; a sweep runs a prefix of them."""
+SWEEP_KEYS = {"name", "base", "config", "steps", "motions"}
+SYNTH_KEYS = {"preset", "garment", "fabric", "seed", "framing"}
+SCENE_KEYS = SYNTH_KEYS | {"capture"}
+TABLE_KEYS = {"rows", "columns", "metrics", "where"}
+TOP_KEYS = {"sweep", "scenes", "configurations", "table"}
+RECORD_FIELDS = ("scene", "configuration", "motion", "variant", "preset", "garment", "fabric", "seed", "framing")
+"""Record fields a table may group or filter by."""
+
+
+@dataclass
+class Scene:
+    name: str
+    synth: dict[str, Any] | None
+    """preset, garment, fabric, seed, framing of a synthetic scene (None for a capture folder)."""
+    capture: Path | None = None
+
+
+@dataclass
+class Configuration:
+    name: str
+    data: dict[str, Any]
+    """The run configuration's TOML tables: the base preset, the sweep's config file, then the overrides."""
+    source: str
+    cfg: Any = None
+    """The validated :class:`pgc.config.RunConfig`."""
+
+
+@dataclass
+class Table:
+    rows: list[str] = field(default_factory=lambda: ["configuration"])
+    columns: list[str] = field(default_factory=list)
+    metrics: list[str] = field(default_factory=list)
+    """Metrics shown (default: every metric of the records)."""
+    where: dict[str, list[Any]] = field(default_factory=dict)
+    """Record field -> allowed values."""
+
+
+@dataclass
+class Sweep:
+    path: Path
+    name: str
+    steps: list[str]
+    motions: list[str]
+    scenes: list[Scene]
+    configurations: list[Configuration]
+    table: Table
+
+
+def _fail(path: Path, key: str, message: str) -> PGCConfigError:
+    return PGCConfigError(f"{path}: {key}: {message}")
+
+
+def _unknown(path: Path, where: str, given: dict[str, Any], allowed: set[str]) -> None:
+    extra = sorted(set(given) - allowed)
+    if extra:
+        raise _fail(path, f"{where}.{extra[0]}" if where else extra[0],
+                    f"unknown key; allowed: {', '.join(sorted(allowed))}")
+
+
+def load_sweep(path: str | Path, registry: Any = None) -> Sweep:
+    """Parse and validate a sweep file (see the module docstring)."""
+    path = Path(path)
+    if not path.is_file():
+        raise PGCConfigError(f"{path}: sweep file not found")
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise PGCConfigError(f"{path}: not valid TOML ({exc})") from None
+    _unknown(path, "", data, TOP_KEYS)
+    head = _table(path, data, "sweep")
+    _unknown(path, "[sweep]", head, SWEEP_KEYS)
+    steps = head.get("steps", list(STEPS))
+    if not isinstance(steps, list) or not steps:
+        raise _fail(path, "[sweep].steps", f"give a list of steps from {', '.join(STEPS)}")
+    for s in steps:
+        if s not in STEPS:
+            raise _fail(path, "[sweep].steps", f"unknown step '{s}'; steps: {', '.join(STEPS)}")
+    if list(steps) != list(STEPS[:len(steps)]):
+        raise _fail(path, "[sweep].steps", f"{steps}: each step needs the ones before it; give a prefix of "
+                                           f"{list(STEPS)}")
+    motions = head.get("motions", [])
+    if not isinstance(motions, list) or not all(isinstance(m, str) for m in motions):
+        raise _fail(path, "[sweep].motions", "give a list of motion names or files")
+    if "animate" in steps and not motions:
+        raise _fail(path, "[sweep].motions", "the step 'animate' needs at least one motion")
+    _check_motions(path, motions, path.parent)
+    scenes = _scenes(path, _table(path, data, "scenes", required=True))
+    configurations = _configurations(path, head, _table(path, data, "configurations", required=True), registry)
+    table = _table_spec(path, _table(path, data, "table"))
+    if table.metrics and "eval" in steps:
+        known = {i.name for c in configurations for i in c.cfg.roles["metric"].implementations}
+        for m in table.metrics:
+            if m not in known:
+                raise _fail(path, "[table].metrics", f"unknown metric '{m}'; the configurations' metrics: "
+                                                     f"{', '.join(sorted(known))}")
+    if "eval" in steps:
+        for s in scenes:
+            if s.capture is not None and not (s.capture / "ground_truth").is_dir():
+                raise _fail(path, f"[scenes.{s.name}].capture", f"{s.capture} has no ground_truth/ folder, so "
+                                                                "'eval' has nothing to compare with; drop 'eval' "
+                                                                "from [sweep].steps")
+    return Sweep(path, str(head.get("name", path.stem)), list(steps), list(motions), scenes, configurations, table)
+
+
+def _table(path: Path, data: dict[str, Any], key: str, required: bool = False) -> dict[str, Any]:
+    value = data.get(key)
+    if value is None:
+        if required:
+            raise _fail(path, f"[{key}]", "missing; the sweep needs at least one entry there")
+        return {}
+    if not isinstance(value, dict) or (required and not value):
+        raise _fail(path, f"[{key}]", "must be a table" + (" with at least one entry" if required else ""))
+    return value
+
+
+def _check_motions(path: Path, motions: list[str], root: Path) -> None:
+    from pgc.synth.motions import MOTIONS
+
+    for m in motions:
+        if m not in MOTIONS and not (root / m).exists():
+            raise _fail(path, "[sweep].motions", f"'{m}' is neither a built-in motion ({', '.join(MOTIONS)}) nor a "
+                                                 "file (paths are relative to the sweep file)")
+
+
+def _scenes(path: Path, table: dict[str, Any]) -> list[Scene]:
+    from pgc.synth.fabrics import FABRICS
+    from pgc.synth.garments import GARMENTS
+    from pgc.synth.generate import PRESETS
+
+    choices = {"preset": tuple(PRESETS), "garment": GARMENTS, "fabric": tuple(FABRICS), "framing": ("body", "garment")}
+    out = []
+    for name, spec in table.items():
+        where = f"[scenes.{name}]"
+        if not isinstance(spec, dict):
+            raise _fail(path, where, "must be a table (preset, garment, fabric, seed, framing; or capture)")
+        _unknown(path, where, spec, SCENE_KEYS)
+        if "capture" in spec:
+            if set(spec) & SYNTH_KEYS:
+                raise _fail(path, where, "give either 'capture' (a folder) or a synthetic spec, not both")
+            folder = (path.parent / spec["capture"]).resolve()
+            if not (folder / "transforms.json").is_file():
+                raise _fail(path, f"{where}.capture", f"{folder} is not a capture folder (no transforms.json)")
+            out.append(Scene(name, None, folder))
+            continue
+        lists = {k: v if isinstance(v, list) else [v] for k, v in spec.items()}
+        for key, values in lists.items():
+            for v in values:
+                if key == "seed" and (not isinstance(v, int) or isinstance(v, bool) or v < 0):
+                    raise _fail(path, f"{where}.seed", f"{v!r}: give a non-negative integer (or a list of them)")
+                if key != "seed" and v not in choices[key]:
+                    raise _fail(path, f"{where}.{key}", f"unknown {key} {v!r}; choose from {', '.join(choices[key])}")
+        varying = [k for k, v in lists.items() if len(v) > 1]
+        for combo in itertools.product(*lists.values()):
+            values = dict(zip(lists, combo))
+            synth = {"preset": "tiny", "garment": None, "fabric": None, "seed": 0, "framing": None} | values
+            suffix = "".join(f"-{k}{values[k]}" if k == "seed" else f"-{values[k]}" for k in varying)
+            out.append(Scene(name + suffix, synth))
+    return out
+
+
+def base_data(base: str | None, config_file: Path | None) -> dict[str, Any]:
+    """The configuration every configuration starts from: the demo preset's settings
+    (``pgc/presets/demo_<base>.toml``) under the sweep's config file."""
+    data: dict[str, Any] = {}
+    if base is not None:
+        preset_file = resources.files("pgc") / "presets" / f"demo_{base}.toml"
+        data = config_mod.load_toml(str(preset_file))
+    if config_file is not None:
+        data = config_mod.deep_merge(data, config_mod.load_toml(config_file))
+    return data
+
+
+def _configurations(path: Path, head: dict[str, Any], table: dict[str, Any], registry: Any) -> list[Configuration]:
+    base = head.get("base")
+    presets = sorted(p.name[len("demo_"):-len(".toml")] for p in (resources.files("pgc") / "presets").iterdir()
+                     if p.name.startswith("demo_"))
+    if base is not None and base not in presets:
+        raise _fail(path, "[sweep].base", f"unknown preset '{base}'; presets: {', '.join(presets)}")
+    config_file = (path.parent / head["config"]) if "config" in head else None
+    if config_file is not None and not config_file.is_file():
+        raise _fail(path, "[sweep].config", f"{config_file} not found (paths are relative to the sweep file)")
+    start = base_data(base, config_file)
+    if registry is None:
+        from pgc.registry import default_registry
+
+        registry = default_registry()
+    out = []
+    for name, overrides in table.items():
+        if not isinstance(overrides, dict):
+            raise _fail(path, f"[configurations.{name}]", "must be a table of run-configuration overrides "
+                                                          "(an empty table keeps the base)")
+        source = f"{path} [configurations.{name}]"
+        conf = Configuration(name, config_mod.deep_merge(start, overrides), source)
+        conf.cfg = config_mod.resolve(conf.data, registry, source=source)
+        out.append(conf)
+    return out
+
+
+def _table_spec(path: Path, table: dict[str, Any]) -> Table:
+    _unknown(path, "[table]", table, TABLE_KEYS)
+    spec = Table()
+    for key in ("rows", "columns", "metrics"):
+        if key in table:
+            value = table[key]
+            value = [value] if isinstance(value, str) else value
+            if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+                raise _fail(path, f"[table].{key}", "give a field name or a list of them")
+            if key != "metrics":
+                for v in value:
+                    if v not in RECORD_FIELDS:
+                        raise _fail(path, f"[table].{key}", f"unknown field '{v}'; fields: {', '.join(RECORD_FIELDS)}")
+            setattr(spec, key, value)
+    where = table.get("where", {})
+    if not isinstance(where, dict):
+        raise _fail(path, "[table].where", "must be a table of field = value (or list of values)")
+    for k, v in where.items():
+        if k not in RECORD_FIELDS:
+            raise _fail(path, f"[table].where.{k}", f"unknown field; fields: {', '.join(RECORD_FIELDS)}")
+        spec.where[k] = v if isinstance(v, list) else [v]
+    return spec

@@ -1,0 +1,141 @@
+"""The report in a real browser: headless Chromium loads every picture and logs nothing to the console.
+
+A session fixture builds a tiny demo (pgc demo --preset tiny) and a relit copy of one run
+(pgc render --rotate-light). The browser test skips only where Chromium is absent and CI is not set.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from pgc.cli import main
+
+CHROMIUM = next((c for c in ("chromium", "chromium-browser", "google-chrome") if shutil.which(c)), None)
+
+
+@pytest.fixture(scope="session")
+def demo(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("report") / "demo"
+    assert main(["demo", "--preset", "tiny", "--out", str(out), "--quiet"]) == 0
+    return out
+
+
+@pytest.fixture(scope="session")
+def relit(demo) -> Path:
+    run = demo.parent / "relit"
+    shutil.copytree(demo / "runs" / "spooky", run)
+    sky = demo / "capture" / "ground_truth" / "envmaps" / "sky.exr"
+    assert main(["render", str(run), "--light", str(sky), "--rotate-light", "--quiet"]) == 0
+    assert main(["report", str(run)]) == 0
+    return run
+
+
+def _browser() -> str:
+    if CHROMIUM is None:
+        if os.environ.get("CI", "").lower() in ("1", "true", "yes"):
+            pytest.fail("CI is set but no chromium is installed: the report's browser test must run in CI")
+        pytest.skip("chromium is not installed (apt-get install chromium); set CI=true to make this a failure")
+    return CHROMIUM
+
+
+def _chromium(page: Path, *flags: str) -> subprocess.CompletedProcess:
+    cmd = [_browser(), "--headless=new", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
+           "--enable-logging=stderr", "--v=0", "--virtual-time-budget=5000", *flags, page.resolve().as_uri()]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+
+
+def _check_in_browser(page: Path, shot: Path) -> dict[str, int]:
+    dom = _chromium(page, "--dump-dom")
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    console = [line for line in dom.stderr.splitlines() if ":CONSOLE" in line or "Uncaught" in line]
+    assert not console, console  # no script error, no console message at all
+    found = re.search(r'id="load-check" data-loaded="(\d+)" data-total="(\d+)"', dom.stdout)
+    assert found, "the load check did not run (script blocked?)"
+    loaded, total = int(found[1]), int(found[2])
+    assert loaded == total == page.read_text().count("<img "), (loaded, total)
+    snap = _chromium(page, f"--screenshot={shot}", "--window-size=1400,2600")
+    assert snap.returncode == 0 and shot.is_file(), snap.stderr[-2000:]
+    return {"loaded": loaded, "total": total}
+
+
+@pytest.mark.slow
+def test_demo_report_loads_every_picture_in_chromium(demo, tmp_path):
+    page = demo / "report.html"
+    html = page.read_text()
+    assert not re.search(r"""(src|href)=['"](https?:)?//""", html)  # self-contained: no network
+    seen = _check_in_browser(page, tmp_path / "report.png")
+    assert seen["total"] >= 3 * 11  # per motion: 4 strip, 3 heatmaps + scale, 2 decomposition, 1 animation
+    shot = np.asarray(Image.open(tmp_path / "report.png").convert("L"), float)
+    assert shot.std() > 10  # a page with pictures, not a blank one
+    # every reported picture exists; crops are whole-pixel enlargements (k x k blocks)
+    names = re.findall(r"src='(report/[^']+)'", html)
+    assert all((demo / n).is_file() for n in names)
+    crop = np.asarray(Image.open(demo / next(n for n in names if n.endswith("_gt.png"))))
+    k = int(re.search(r"enlarged x(\d+)", html)[1])
+    assert k >= 2 and crop.shape[0] % k == 0
+    np.testing.assert_array_equal(np.repeat(np.repeat(crop[::k, ::k], k, 0), k, 1), crop)
+    frames = len(json.loads((demo / "runs" / "goalpost" / "render" / "render.json").read_text())["frames"])
+    with Image.open(demo / "report" / "goalpost_loop.webp") as anim:
+        assert anim.n_frames == frames and anim.info.get("loop") == 0
+    size = int(re.search(r"\((\d+) KiB in all\)", html)[1])
+    on_disk = page.stat().st_size + sum(p.stat().st_size for p in (demo / "report").iterdir())
+    assert abs(size * 1024 - on_disk) < 2048 and on_disk < 3 * 2**20
+
+
+@pytest.mark.slow
+def test_relit_run_report_shows_the_light_rotation(relit, tmp_path):
+    page = relit / "report.html"
+    html = page.read_text()
+    assert "Relighting" in html and html.count("light at ") >= 2 and "spooky_relight.webp" in html
+    assert "_error.png" not in html  # the ground truth is under the capture light: no heatmaps for a relit run
+    names = re.findall(r"src='(report/spooky_relight_\d+\.png)'", html)
+    first, last = (np.asarray(Image.open(relit / n), float) for n in (names[0], names[-1]))
+    assert np.abs(first - last).mean() > 1.0  # the light turned: the garment's shading changed
+    _check_in_browser(page, tmp_path / "relit.png")
+
+
+@pytest.mark.slow
+def test_report_command_rebuilds_and_sweeps_stale_pictures(demo, capsys):
+    stale = demo / "report" / "old_picture.png"
+    stale.write_bytes(b"x")
+    assert main(["report", str(demo), "--json"]) == 0
+    assert '"bytes"' in capsys.readouterr().out and not stale.exists()
+    assert "pgc render RUN --light sky.exr --rotate-light" in (demo / "report.html").read_text()
+
+
+def test_report_errors_name_the_folder_and_the_fix(tmp_path, capsys):
+    assert main(["report", str(tmp_path / "nope")]) == 2
+    assert "nope" in capsys.readouterr().err
+    assert main(["report", str(tmp_path)]) == 2
+    assert "pgc demo --out" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["report", "--help"])
+    assert "examples:" in capsys.readouterr().out
+
+
+def test_bench_records_chart_speed_against_error(tmp_path):
+    from pgc.errors import PGCDataError
+    from pgc.pipeline.report import _bench_records
+    from pgc.pipeline.report_figures import bench_chart
+
+    records = [{"role": "filter", "implementation": name, "label": name, "seconds": s, "error_key": "max_abs",
+                "errors": {"max_abs": e}} for name, s, e in (("numpy", 0.01, 1e-6), ("opencv", 0.001, 1e-3))]
+    records.append({"role": "filter", "implementation": "broken", "seconds": None, "errors": {}})
+    (tmp_path / "bench.json").write_text(json.dumps(records))
+    loaded = _bench_records(tmp_path)
+    assert len(loaded) == 3
+    assert bench_chart(tmp_path / "bench.svg", loaded)
+    svg = (tmp_path / "bench.svg").read_text()
+    assert "opencv" in svg and "numpy" in svg and "broken" not in svg and "max_abs" in svg
+    assert not bench_chart(tmp_path / "none.svg", records[2:]) and not (tmp_path / "none.svg").exists()
+    with pytest.raises(PGCDataError, match="pgc bench --out"):
+        _bench_records(tmp_path / "elsewhere")
