@@ -71,6 +71,8 @@ def main(argv: list[str] | None = None) -> int:
         return _fail(args, f"unexpected {type(exc).__name__}: {exc}; this is a bug or an input PGC does not "
                            "check yet: rerun with 'pgc --debug ...' for the traceback and report it", 1)
     finally:
+        if "pgc.progress" in sys.modules:  # bars of stages a failed command left open
+            sys.modules["pgc.progress"].ProgressPrinter.close_all()
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
 

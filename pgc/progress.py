@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+import weakref
 from typing import Any
 
 from pgc.hookspecs import hookimpl
@@ -11,9 +12,25 @@ from pgc.hookspecs import hookimpl
 class ProgressPrinter:
     """Shows a bar per stage with its figures, and a line with the time when it finishes."""
 
+    _live: "weakref.WeakSet[ProgressPrinter]" = weakref.WeakSet()
+
     def __init__(self, stream: Any = None) -> None:
         self.stream = stream or sys.stderr
         self._bars: dict[str, Any] = {}
+        ProgressPrinter._live.add(self)
+
+    def close(self) -> None:
+        """Close the bars of stages that never finished (a command that failed or was interrupted): tqdm keeps
+        every open bar and redraws it when a later bar starts, which would write to a stream gone by then."""
+        for bar in self._bars.values():
+            bar.close()
+        self._bars.clear()
+
+    @classmethod
+    def close_all(cls) -> None:
+        """:meth:`close` every printer of this process (the command line calls it when a command ends)."""
+        for printer in list(cls._live):
+            printer.close()
 
     @hookimpl
     def pgc_stage_started(self, stage: str, info: dict[str, Any]) -> None:

@@ -19,9 +19,10 @@ class XPBDOptions(Options):
         "(default: colouring, which reached a lower residual per unit time in benchmarks/bench_simulator.py)")
     relaxation: float = Field(1.5, gt=0.0, lt=2.0, description="Jacobi over-relaxation factor omega")
     density: float = Field(0.15, gt=0.0, description="fabric areal density (kg/m^2)")
-    stretch_stiffness: float = Field(5.0e3, gt=0.0, description="edge spring stiffness (N/m); "
-                                     "compliance = 1 / stiffness; inf-like values give rigid edges")
-    bend_stiffness: float = Field(5.0, ge=0.0, description="spring stiffness across interior edges (N/m)")
+    stretch_stiffness: float = Field(5.0e3, gt=0.0, allow_inf_nan=True, description=(
+        "edge spring stiffness (N/m); compliance = 1 / stiffness; inf gives rigid edges (zero compliance)"))
+    bend_stiffness: float = Field(5.0, ge=0.0, allow_inf_nan=True, description=(
+        "spring stiffness across interior edges (N/m); inf gives rigid bending"))
     bend_scale: float = Field(1.0, ge=0.0, description="multiplier of bend_stiffness (paper: 10 for thick garments)")
     damping: float = Field(1.0, ge=0.0, description="velocity damping rate (1/s): v *= exp(-damping * h)")
     gravity: tuple[float, float, float] = Field((0.0, -9.81, 0.0), description="gravity (m/s^2), +Y up")
