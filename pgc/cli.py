@@ -57,7 +57,9 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
+    _SIGNALLED.clear()
     previous = signal.signal(signal.SIGTERM, _terminate) if _main_thread() else None
+    previous_int = signal.signal(signal.SIGINT, _terminate) if _main_thread() else None
     try:
         return int(args.func(args) or 0)
     except PGCError as exc:
@@ -68,6 +70,9 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         return _fail(args, os_error_message(exc), 2)
     except Exception as exc:
+        if _SIGNALLED or _interrupted(exc):  # Ctrl-C or SIGTERM arrived, e.g. while a C extension imported
+            print(f"pgc {args.command}: interrupted; completed stages are kept and a rerun resumes", file=sys.stderr)
+            return 130
         return _fail(args, f"unexpected {type(exc).__name__}: {exc}; this is a bug or an input PGC does not "
                            "check yet: rerun with 'pgc --debug ...' for the traceback and report it", 1)
     finally:
@@ -75,6 +80,20 @@ def main(argv: list[str] | None = None) -> int:
             sys.modules["pgc.progress"].ProgressPrinter.close_all()
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+        if previous_int is not None:
+            signal.signal(signal.SIGINT, previous_int)
+
+
+def _interrupted(exc: BaseException) -> bool:
+    """Whether ``exc`` was caused by an interruption (an extension module's import fails with ImportError when a
+    signal's KeyboardInterrupt arrives during its initialisation)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 def os_error_message(exc: OSError) -> str:
@@ -96,8 +115,14 @@ def _fail(args: argparse.Namespace, message: str, code: int) -> int:
     return code
 
 
+_SIGNALLED: list[int] = []
+"""Signals received by the running command (an interruption may surface as another exception: an extension
+module's import fails with ImportError when the signal lands during its initialisation)."""
+
+
 def _terminate(signum: int, frame: object) -> None:
-    """SIGTERM unwinds like Ctrl-C: temporary files are removed, the folder lock released."""
+    """SIGINT and SIGTERM unwind like Ctrl-C: temporary files are removed, the folder lock released."""
+    _SIGNALLED.append(signum)
     raise KeyboardInterrupt
 
 

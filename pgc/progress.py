@@ -15,9 +15,16 @@ class ProgressPrinter:
     _live: "weakref.WeakSet[ProgressPrinter]" = weakref.WeakSet()
 
     def __init__(self, stream: Any = None) -> None:
-        self.stream = stream or sys.stderr
+        self._stream = stream
         self._bars: dict[str, Any] = {}
         ProgressPrinter._live.add(self)
+
+    @property
+    def stream(self) -> Any:
+        """The stream given, else the current ``sys.stderr``; a closed one (an embedding program or test harness
+        replaced and closed it) falls back to the process's original stderr, so progress never fails a run."""
+        stream = self._stream if self._stream is not None else sys.stderr
+        return sys.__stderr__ if getattr(stream, "closed", False) else stream
 
     def close(self) -> None:
         """Close the bars of stages that never finished (a command that failed or was interrupted): tqdm keeps
