@@ -16,7 +16,7 @@ import shutil
 import subprocess
 import tempfile
 from pathlib import Path
-from typing import Sequence
+from typing import Callable, Sequence
 
 from pgc.errors import PGCPluginError
 
@@ -75,3 +75,12 @@ def load(source: Path, flags: Sequence[str] = DEFAULT_FLAGS) -> ctypes.CDLL:
         return ctypes.CDLL(str(build(source, flags)))
     except OSError as exc:
         raise KernelUnavailable(f"loading {Path(source).name}'s library failed: {exc}") from exc
+
+
+def loads(loader: Callable[[], object]) -> bool:
+    """Whether ``loader()`` (a kernel module's cached ``load``) builds and loads its library here."""
+    try:
+        loader()
+    except KernelUnavailable:
+        return False
+    return True

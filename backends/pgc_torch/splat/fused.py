@@ -74,11 +74,7 @@ def load() -> ctypes.CDLL:
 
 def available() -> bool:
     """Whether the fused kernel builds and loads here."""
-    try:
-        load()
-    except KernelUnavailable:
-        return False
-    return True
+    return native.loads(load)
 
 
 def camera_vector(camera: Camera, near: float) -> torch.Tensor:
