@@ -7,9 +7,12 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import signal
 import sys
+import threading
 import traceback
+from typing import Any
 
 from pgc.errors import PGCError
 
@@ -66,13 +69,13 @@ def main(argv: list[str] | None = None) -> int:
         return _fail(args, str(exc), 2)
     except KeyboardInterrupt:
         print(f"pgc {args.command}: interrupted; completed stages are kept and a rerun resumes", file=sys.stderr)
-        return 130
+        return _interrupted_exit(argv)
     except OSError as exc:
         return _fail(args, os_error_message(exc), 2)
     except Exception as exc:
         if _SIGNALLED or _interrupted(exc):  # Ctrl-C or SIGTERM arrived, e.g. while a C extension imported
             print(f"pgc {args.command}: interrupted; completed stages are kept and a rerun resumes", file=sys.stderr)
-            return 130
+            return _interrupted_exit(argv)
         return _fail(args, f"unexpected {type(exc).__name__}: {exc}; this is a bug or an input PGC does not "
                            "check yet: rerun with 'pgc --debug ...' for the traceback and report it", 1)
     finally:
@@ -120,15 +123,41 @@ _SIGNALLED: list[int] = []
 module's import fails with ImportError when the signal lands during its initialisation)."""
 
 
-def _terminate(signum: int, frame: object) -> None:
-    """SIGINT and SIGTERM unwind like Ctrl-C: temporary files are removed, the folder lock released."""
+def _terminate(signum: int, frame: Any) -> None:
+    """SIGINT and SIGTERM unwind like Ctrl-C: temporary files are removed, the folder lock released.
+
+    A signal that lands while a module is being imported is delivered again 50 ms later: an extension whose
+    initialisation runs Python code (drjit's nanobind enums) aborts the process when an exception is raised
+    inside it."""
+    if _importing(frame):
+        timer = threading.Timer(0.05, os.kill, (os.getpid(), signum))
+        timer.daemon = True
+        timer.start()
+        return
     _SIGNALLED.append(signum)
     raise KeyboardInterrupt
 
 
-def _main_thread() -> bool:
-    import threading
+def _importing(frame: Any) -> bool:
+    """Whether the interrupted code runs inside an import (a frame of importlib's bootstrap on the stack)."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib"):
+            return True
+        frame = frame.f_back
+    return False
 
+
+def _interrupted_exit(argv: list[str] | None) -> int:
+    """130. As the program (``argv`` None: the ``pgc`` script), exit at once after flushing: interpreter
+    finalisation after an extension was interrupted mid-work (Mitsuba's threads) can abort the process."""
+    if argv is None:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(130)
+    return 130
+
+
+def _main_thread() -> bool:
     return threading.current_thread() is threading.main_thread()
 
 

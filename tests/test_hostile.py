@@ -455,7 +455,9 @@ def _out_case(command: str, make_out: Callable[[Path], Path], words: list[str]) 
                 "animate": ["animate", w.asset, "--motion", w.motion, "--out", out, "--quiet"],
                 "demo": ["demo", "--preset", "tiny", "--out", out, "--quiet"],
                 "synth": ["synth", out, "--preset", "tiny"],
-                "eval": ["eval", w.run, "--gt", w.capture, "--out", out, "--quiet"]}[command]
+                "eval": ["eval", w.run, "--gt", w.capture, "--out", out, "--quiet"],
+                "export": ["export", w.asset, "--format", "obj-seq", "--out", out],
+                "sweep": ["sweep", _sweep_case({}, [])(tmp, w)[0][1], "--out", out, "--quiet"]}[command]
         return argv, words
     return build
 
@@ -471,7 +473,7 @@ def _under_file(tmp: Path) -> Path:
 
 
 OUT_KINDS = {"is_file": (_a_file, ["is a file"]), "under_file": (_under_file, ["is a file"])}
-for _command in ("reconstruct", "animate", "demo", "synth"):
+for _command in ("reconstruct", "animate", "demo", "synth", "export", "sweep"):
     for _kind, (_make, _words) in OUT_KINDS.items():
         CASES.append((f"out-{_command}-{_kind}", _out_case(_command, _make, _words)))
 CASES.append(("out-eval-existing-folder", _out_case("eval", lambda t: t, ["is a folder"])))
@@ -530,6 +532,264 @@ for _command in ("reconstruct", "animate", "render", "eval", "demo"):
     CASES.append((f"block-{_command}", _block_case(_command)))
 
 
+# pgc export and pgc info (an asset or run folder) --------------------------------------------------------------
+def _copied_run(tmp: Path, w: World, edit: Callable[[Path], None] | None = None) -> Path:
+    run = tmp / "run"
+    shutil.copytree(w.run, run)
+    if edit is not None:
+        edit(run)
+    return run
+
+
+def _source_case(command: str, make: Callable[[Path, World], Path], words: list[str], fmt: str = "obj-seq",
+                 out: str = "out") -> Build:
+    def build(tmp: Path, w: World):
+        source = make(tmp, w)
+        extra = ["--format", fmt, "--out", tmp / out] if command == "export" else []
+        return [command, source, *extra], words
+    return build
+
+
+def _edited_asset(tmp: Path, w: World) -> Path:
+    asset = tmp / "asset"
+    shutil.copytree(w.asset, asset)
+    (asset / "garment.obj").write_text((asset / "garment.obj").read_text() + "# edited\n")
+    return asset
+
+
+def _npz_edit(name: str, change: Callable[[dict], None]) -> Callable[[Path, World], Path]:
+    """A copy of the run whose ``name`` (garment.npz or body.npz) has its arrays changed by ``change``."""
+    def make(tmp: Path, w: World) -> Path:
+        def edit(run: Path) -> None:
+            z = dict(np.load(run / name))
+            change(z)
+            save_npz(run / name, **z)
+        return _copied_run(tmp, w, edit)
+    return make
+
+
+def _file(name: str, content: bytes) -> Callable[[Path, World], Path]:
+    return lambda tmp, w: _copied_run(tmp, w, lambda run: (run / name).write_bytes(content))
+
+
+SOURCE_CASES = {
+    "missing": (lambda t, w: t / "nothing", ["nothing", "no such folder"]),
+    "neither_asset_nor_run": (lambda t, w: t, ["neither an asset folder", "nor a run folder"]),
+    "asset_hash_mismatch": (_edited_asset, ["garment.obj", "does not match the hash"]),
+    "run_json_malformed": (_file("run.json", b'{"asset": '), ["run.json", "malformed"]),
+    "garment_not_npz": (_file("garment.npz", b"PK\x03\x04 no zip"), ["garment.npz", "not a readable run file"]),
+    "garment_nan": (_npz_edit("garment.npz", lambda z: z.update(vertices=z["vertices"] * np.nan)),
+                    ["garment.npz", "non-finite"]),
+    "body_frames_mismatch": (_npz_edit("body.npz", lambda z: z.update(vertices=z["vertices"][:3])),
+                             ["body.npz", "(4, V, 3)"]),
+    "body_faces_out_of_range": (_npz_edit("body.npz", lambda z: z.update(faces=np.array([[0, 1, 99]]))),
+                                ["body.npz", "'faces'"]),
+    "garment_empty": (_file("garment.npz", b""), ["garment.npz", "not a readable run file"]),
+    "garment_pickled": (_npz_edit("garment.npz", lambda z: z.update(vertices=np.array([z["vertices"][0], None],
+                                                                                       dtype=object))),
+                        ["garment.npz", "not a readable run file", "allow_pickle"]),
+}
+for _name, (_make, _words) in SOURCE_CASES.items():
+    for _command in ("export", "info"):
+        CASES.append((f"{_command}-{_name}", _source_case(_command, _make, _words)))
+
+EXPORT_CASES = {
+    "unknown_format": (lambda t, w: w.asset, ["--format 'fbx'", "unknown export format", "gltf"], "fbx", "out"),
+    "gltf_suffix": (lambda t, w: w.asset, ["x.gltf", ".glb"], "gltf", "x.gltf"),
+    "usd_suffix": (lambda t, w: w.asset, ["x.obj", ".usd"], "usd", "x.obj"),
+    "run_garment_other_asset": (_npz_edit("garment.npz", lambda z: z.update(
+        vertices=np.concatenate([z["vertices"], z["vertices"][:, :1]], axis=1))),
+                                ["garment.npz", "do not fit the asset's garment"], "obj-seq", "out"),
+}
+for _name, (_make, _words, _fmt, _out) in EXPORT_CASES.items():
+    CASES.append((f"export-{_name}", _source_case("export", _make, _words, _fmt, _out)))
+
+
+def _export_out(fmt: str, make_out: Callable[[Path], Path], words: list[str]) -> Build:
+    def build(tmp: Path, w: World):
+        return ["export", w.asset, "--format", fmt, "--out", make_out(tmp)], words
+    return build
+
+
+CASES += [
+    ("export-out-under-file", _export_out("gltf", lambda t: _under_file(t).with_suffix(".glb"), ["is a file"])),
+    ("export-out-is-folder", _export_out("gltf", lambda t: (t / "d.glb").mkdir() or t / "d.glb",
+                                         ["is a folder", "d.glb/garment.glb"])),
+]
+
+
+@case("export-out-inside-asset")
+def _(tmp, w):
+    asset = tmp / "asset"
+    shutil.copytree(w.asset, asset)
+    return ["export", asset, "--format", "gltf", "--out", asset / "g.glb"], ["inside the asset folder"]
+
+
+@case("export-run-out-inside-its-asset")
+def _(tmp, w):
+    asset = tmp / "asset"
+    shutil.copytree(w.asset, asset)
+    run = _copied_run(tmp, w, lambda r: _run_json(lambda m: m.update(asset=str(asset)))(r, w))
+    return ["export", run, "--format", "obj-seq", "--out", asset / "objs"], ["inside the asset folder"]
+
+
+def _info_file(name: str, content: bytes, words: list[str]) -> Build:
+    def build(tmp: Path, w: World):
+        def edit(run: Path) -> None:
+            (run / name).parent.mkdir(exist_ok=True)
+            (run / name).write_bytes(content)
+        return ["info", _copied_run(tmp, w, edit)], words
+    return build
+
+
+CASES += [
+    ("info-render-json-malformed", _info_file("render/render.json", b"{", ["render.json", "malformed"])),
+    ("info-render-json-list", _info_file("render/render.json", b"[1]", ["render.json", "JSON object"])),
+    ("info-metrics-malformed", _info_file("metrics.json", b"{", ["metrics.json", "malformed"])),
+    ("info-metrics-non-utf8", _info_file("metrics.json", b'{"a": "\xff"}', ["metrics.json", "malformed"])),
+]
+
+
+# pgc report (a run or demo folder) ---------------------------------------------------------------------------
+def _report_case(make: Callable[[Path, World], Path], words: list[str], bench: Callable[[Path], Path] | None = None
+                 ) -> Build:
+    def build(tmp: Path, w: World):
+        return ["report", make(tmp, w), *(["--bench", bench(tmp)] if bench else [])], words
+    return build
+
+
+def _demo(metrics: bytes | None, rendered: bool = True) -> Callable[[Path, World], Path]:
+    def make(tmp: Path, w: World) -> Path:
+        demo = tmp / "demo"
+        (demo / "runs").mkdir(parents=True)
+        if rendered:
+            shutil.copytree(w.run, demo / "runs" / "m")
+        if metrics is not None:
+            (demo / "metrics.json").write_bytes(metrics)
+        return demo
+    return make
+
+
+def _bench_file(content: bytes) -> Callable[[Path], Path]:
+    def make(tmp: Path) -> Path:
+        (tmp / "bench").mkdir()
+        (tmp / "bench" / "bench.json").write_bytes(content)
+        return tmp / "bench"
+    return make
+
+
+REPORT_CASES = {
+    "not_a_folder": (lambda t, w: t / "nothing", ["nothing", "not a folder"], None),
+    "no_run": (lambda t, w: t, ["neither a run folder", "nor a demo folder"], None),
+    "demo_nothing_rendered": (_demo(None, rendered=False), ["no rendered runs"], None),
+    "run_not_rendered": (lambda t, w: _copied_run(t, w, lambda r: shutil.rmtree(r / "render")),
+                         ["no rendered frames", "pgc render"], None),
+    "run_json_malformed": (_file("run.json", b"{"), ["run.json", "malformed"], None),
+    "run_json_list": (_file("run.json", b"[]"), ["run.json", "JSON object"], None),
+    "run_metrics_malformed": (_file("metrics.json", b"{"), ["metrics.json", "malformed"], None),
+    "render_json_malformed": (_file("render/render.json", b"{"), ["render.json", "malformed"], None),
+    "render_frame_missing": (lambda t, w: _copied_run(t, w, lambda r: (r / "render" / "frame_0003.npz").unlink()),
+                             ["frames [3]", "missing"], None),
+    "demo_metrics_malformed": (_demo(b"{"), ["metrics.json", "malformed"], None),
+    "demo_metrics_list": (_demo(b"[1]"), ["metrics.json", "JSON object"], None),
+    "demo_run_json_malformed": (lambda t, w: (_demo(None)(t, w), (t / "demo/runs/m/run.json").write_text("{"))[0],
+                                ["run.json", "malformed"], None),
+    "bench_missing": (lambda t, w: _copied_run(t, w), ["nothing", "not found", "pgc bench"], lambda t: t / "nothing"),
+    "bench_malformed": (lambda t, w: _copied_run(t, w), ["bench.json", "malformed"], _bench_file(b"{")),
+    "bench_not_records": (lambda t, w: _copied_run(t, w), ["bench.json", "list of bench records"],
+                          _bench_file(b'{"records": 3}')),
+    "report_html_is_folder": (lambda t, w: _copied_run(t, w, lambda r: (r / "report.html").mkdir()),
+                              ["report.html", "is a folder", "move the folder away"], None),
+    "report_folder_is_file": (lambda t, w: _copied_run(t, w, lambda r: (r / "report").write_text("x")),
+                              ["report", "is a file", "move the file away"], None),
+}
+for _name, (_make, _words, _bench) in REPORT_CASES.items():
+    CASES.append((f"report-{_name}", _report_case(_make, _words, _bench)))
+
+
+# pgc sweep (the sweep file and the options) --------------------------------------------------------------------
+SWEEP = """[sweep]
+name = "t"
+steps = ["reconstruct", "animate"]
+motions = ["goalpost"]
+[scenes.a]
+preset = "tiny"
+[configurations.c]
+[table]
+rows = ["configuration"]
+"""
+
+
+def _sweep_case(edits: dict[str, str], words: list[str], options: tuple = (),
+                files: dict[str, bytes] | None = None) -> Build:
+    """The good sweep file above with each ``old`` text replaced by ``new`` (CAPTURE: the world's capture)."""
+    def build(tmp: Path, w: World):
+        text = SWEEP
+        for old, new in edits.items():
+            assert old in text, old
+            text = text.replace(old, new.replace("CAPTURE", str(w.capture)))
+        (tmp / "s.toml").write_bytes(text.encode("utf-8", "surrogateescape"))
+        for name, content in (files or {}).items():
+            (tmp / name).write_bytes(content)
+        return ["sweep", tmp / "s.toml", "--out", tmp / "out", "--quiet", *options], words
+    return build
+
+
+SWEEP_CASES = {
+    "bad_toml": ("[scenes.a]", "[scenes.a", ["s.toml", "not valid TOML"]),
+    "non_utf8": ('name = "t"', 'name = "\udcff"', ["s.toml", "not valid TOML"]),
+    "unknown_top_key": ("[table]", "[tables]", ["s.toml", "tables: unknown key"]),
+    "unknown_sweep_key": ('name = "t"', 'name = "t"\ncolour = "red"', ["s.toml", "[sweep].colour: unknown key"]),
+    "unknown_scene_key": ('preset = "tiny"', 'preset = "tiny"\nsize = 3', ["s.toml", "[scenes.a].size"]),
+    "name_not_string": ('name = "t"', "name = 3", ["s.toml", "[sweep].name", "3"]),
+    "name_a_path": ('name = "t"', 'name = "../elsewhere"', ["s.toml", "[sweep].name", "folder name"]),
+    "scene_name_a_path": ("[scenes.a]", '[scenes."a/b"]', ["s.toml", "[scenes.a/b]", "folder name"]),
+    "config_not_string": ('name = "t"', 'name = "t"\nconfig = 3', ["s.toml", "[sweep].config"]),
+    "config_missing": ('name = "t"', 'name = "t"\nconfig = "nope.toml"', ["s.toml", "nope.toml", "not found"]),
+    "base_unknown": ('name = "t"', 'name = "t"\nbase = "huge"', ["s.toml", "[sweep].base", "unknown preset"]),
+    "base_not_string": ('name = "t"', 'name = "t"\nbase = ["tiny"]', ["s.toml", "[sweep].base"]),
+    "steps_not_list": ('steps = ["reconstruct", "animate"]', 'steps = "reconstruct"', ["s.toml", "[sweep].steps"]),
+    "steps_no_prefix": ('steps = ["reconstruct", "animate"]', 'steps = ["animate"]', ["s.toml", "each step needs"]),
+    "motions_not_list": ('motions = ["goalpost"]', 'motions = "goalpost"', ["s.toml", "[sweep].motions"]),
+    "motion_unknown": ('motions = ["goalpost"]', 'motions = ["moonwalk"]', ["s.toml", "'moonwalk'", "built-in"]),
+    "motion_file_corrupt": ('motions = ["goalpost"]', 'motions = ["m.npz"]',
+                            ["s.toml", "[sweep].motions", "m.npz", "not a readable .npz"]),
+    "seed_nan": ('preset = "tiny"', 'preset = "tiny"\nseed = nan', ["s.toml", "[scenes.a].seed", "nan"]),
+    "seed_negative": ('preset = "tiny"', 'preset = "tiny"\nseed = -1', ["s.toml", "[scenes.a].seed"]),
+    "seed_float": ('preset = "tiny"', 'preset = "tiny"\nseed = 1.5', ["s.toml", "[scenes.a].seed"]),
+    "preset_unknown": ('preset = "tiny"', 'preset = "huge"', ["s.toml", "[scenes.a].preset", "unknown preset"]),
+    "capture_missing": ('preset = "tiny"', 'capture = "nowhere"', ["s.toml", "[scenes.a].capture", "nowhere"]),
+    "capture_not_string": ('preset = "tiny"', "capture = 3", ["s.toml", "[scenes.a].capture", "string"]),
+    "capture_and_synth": ('preset = "tiny"', 'preset = "tiny"\ncapture = "CAPTURE"', ["s.toml", "not both"]),
+    "capture_no_ground_truth": ({'"animate"]': '"animate", "render", "eval"]',
+                                 "[configurations.c]": '[scenes.b]\ncapture = "CAPTURE"\n[configurations.c]'},
+                                ["s.toml", "[scenes.b].capture", "no ground_truth"]),
+    "scenes_missing": ('[scenes.a]\npreset = "tiny"\n', "", ["s.toml", "[scenes]", "missing"]),
+    "configurations_missing": ("[configurations.c]\n", "", ["s.toml", "[configurations]"]),
+    "option_nan": ("[configurations.c]", "[configurations.c.stages.fit_splats]\nlr_position = nan",
+                   ["s.toml", "[configurations.c]", "lr_position", "finite"]),
+    "option_inf": ("[configurations.c]", "[configurations.c.stages.material]\nlr = inf",
+                   ["s.toml", "[configurations.c]", "lr", "finite"]),
+    "option_wrong_type": ("[configurations.c]", "[configurations.c.stages.fit_splats]\niterations = 'many'",
+                          ["s.toml", "iterations"]),
+    "unknown_stage": ("[configurations.c]", "[configurations.c.stages.nostage]", ["s.toml", "unknown stage"]),
+    "unknown_implementation": ("[configurations.c]", "[configurations.c.simulator]\nuse = 'nosim'",
+                               ["s.toml", "no simulator named 'nosim'"]),
+    "table_row_unknown": ('rows = ["configuration"]', 'rows = ["colour"]', ["s.toml", "[table].rows", "'colour'"]),
+    "table_where_unknown": ('rows = ["configuration"]', 'where = { colour = "red" }', ["s.toml", "[table].where"]),
+}
+for _name, _edit in SWEEP_CASES.items():
+    _edits = _edit[0] if isinstance(_edit[0], dict) else {_edit[0]: _edit[1]}
+    CASES.append((f"sweep-{_name}", _sweep_case(_edits, _edit[-1], files={"m.npz": b"PK\x03\x04 no zip"})))
+CASES += [
+    ("sweep-file-missing", lambda t, w: (["sweep", t / "none.toml", "--out", t / "out"], ["none.toml", "not found"])),
+    ("sweep-retries-negative", _sweep_case({}, ["--retries -1"], ("--retries", "-1"))),
+    ("sweep-threads-zero", _sweep_case({}, ["--threads 0"], ("--threads", "0"))),
+    ("sweep-scheduler-bogus", _sweep_case({}, ["--scheduler bogus", "local:N"], ("--scheduler", "bogus"))),
+    ("sweep-scheduler-zero-workers", _sweep_case({}, ["--scheduler local:0"], ("--scheduler", "local:0"))),
+]
+
+
 @pytest.mark.parametrize("build", [c[1] for c in CASES], ids=[c[0] for c in CASES])
 def test_hostile_input_is_one_clear_error_and_changes_nothing(build, world, tmp_path, capsys):
     argv, words = build(tmp_path, world)
@@ -544,16 +804,19 @@ def test_hostile_input_is_one_clear_error_and_changes_nothing(build, world, tmp_
     assert snapshot(world.root, tmp_path) == before, "a refused command changed files"
 
 
-@pytest.mark.parametrize("command", ["reconstruct", "animate", "demo", "eval"])
+@pytest.mark.parametrize("command", ["reconstruct", "animate", "demo", "eval", "export", "sweep", "report"])
 def test_a_read_only_output_folder_is_refused_before_any_work(command, world, tmp_path, capsys, monkeypatch):
     """Permissions as the kernel reports them to a non-root user (the tests may run as root, who may write
-    anywhere): ``os.access`` says the folder is not writable."""
+    anywhere): ``os.access`` says the folder is not writable. ``pgc report`` writes into the run folder."""
     ro = tmp_path / "ro"
-    ro.mkdir()
+    if command == "report":
+        shutil.copytree(world.run, ro)
+    else:
+        ro.mkdir()
     real = os.access
     monkeypatch.setattr(os, "access", lambda p, mode, **k: False if Path(p) == ro else real(p, mode, **k))
     out = ro / ("m.json" if command == "eval" else "out")
-    argv, _ = _out_case(command, lambda t: out, [])(tmp_path, world)
+    argv = ["report", ro] if command == "report" else _out_case(command, lambda t: out, [])(tmp_path, world)[0]
     before = snapshot(world.root, tmp_path)
     code, err = pgc(argv, capsys)
     assert code == 2 and f"{ro} is not writable" in err and err.count("\n") == 1, err
@@ -565,7 +828,8 @@ def test_the_suite_covers_every_group_with_enough_cases():
     for name, _ in CASES:
         groups[name.split("-")[0]] = groups.get(name.split("-")[0], 0) + 1
     assert len(CASES) + len(PLY_CASES) + len(COLMAP_CASES) >= 120, groups
-    assert {"config", "capture", "motion", "asset", "run", "render", "out", "block"} <= set(groups)
+    assert {"config", "capture", "motion", "asset", "run", "render", "out", "block", "export", "info", "report",
+            "sweep"} <= set(groups)
 
 
 # .ply files and COLMAP models: the readers' errors (these formats reach the commands through plugins) -----------

@@ -1,8 +1,19 @@
-"""`pgc animate` killed at 20 seeded random moments (SIGINT, SIGTERM, SIGKILL), resumed each time, ends with
-the same files as an uninterrupted run, no orphan temporary folder and no held lock."""
+"""Killed at random moments, resumed, nothing lost or mixed.
+
+A tiny pipeline (``pgc synth``, ``reconstruct``, ``animate``, ``render``) is run once without interruption,
+then again in the same folder killed at 20 seeded moments (SIGINT, SIGTERM and SIGKILL in turn), each run
+resuming what the previous one left. The end state must hold the same bytes as the uninterrupted run, no
+orphan temporary file or folder and no held lock.
+
+The moments are aimed so that every stage is hit: each target is a phase of one command (its start-up, a
+cached stage, or the writing of its output files), found by what the phase leaves on disk (the stage's
+temporary folder ``.<stage>.<pid>.*``, the temporary files ``.<name>.<pid>.*.tmp*`` of atomic writes); the
+signal follows at a seeded uniform delay within the phase's duration measured in the uninterrupted run.
+"""
 
 from __future__ import annotations
 
+import glob
 import hashlib
 import json
 import os
@@ -15,70 +26,231 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import seamed_cube
-from pgc.io.asset import write_asset
-from pgc.io.lock import is_locked
+from pgc.io.atomic import atomic_path, process_alive
+from pgc.io.lock import LOCK_NAME, is_locked
+from pgc.io.timings import TIMINGS, split_timings
+from pgc.pipeline.cache import STAGE_META
 
-KILLS = 20
 SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGKILL)
-CONFIG = '[simulator]\nuse = ["xpbd-native", "xpbd-torch"]\n'
+CONFIG = """
+[reconstructor]
+use = ["visual_hull"]
+[reconstructor.visual_hull]
+target_vertices = 1500
+remesh_iterations = 2
+uv_resolution = 128
+[simulator]
+use = ["xpbd-native", "xpbd-torch"]
+[simulator.xpbd-native]
+substeps = 5
+iterations = 5
+settle_frames = 2
+blend_frames = 2
+[stages.garment]
+uv_resolution = 128
+[stages.fit_splats]
+iterations = 30
+converge_every = 10
+min_gaussians = 200
+select_count = false
+select_sh = false
+max_sh_degree = 0
+[stages.base_color]
+texture_size = 32
+num_views = 2
+[stages.material]
+max_iterations = 3
+max_image_side = 16
+eval_spp = 4
+spp = 2
+views_per_step = 2
+[stages.animate]
+seconds = 0.2
+[stages.render]
+views = 1
+kernel_views = 1
+texture_size = 32
+frame_stride = 3
+[stages.render.kernel]
+mode = "fixed"
+size = 5
+"""
+PIPELINE = ("synth", "reconstruct", "animate", "render")
+PHASES = {
+    "synth": {},
+    "reconstruct": {**{s: f"asset/stages/.{s}.{{pid}}.*" for s in ("mesh", "garment", "fit_splats", "base_color",
+                                                                    "material")},
+                    "write": "asset/.*.{pid}.*.tmp*"},
+    "animate": {"animate": "run/stages/.animate.{pid}.*", "write": "run/.*.{pid}.*.tmp*"},
+    "render": {"render": "run/.render.{pid}.*"},
+}
+"""Per command, its phases in order and the glob of what each leaves on disk while it runs ({pid}: the
+command's process)."""
+STAGE_FOLDERS = {**{s: f"asset/stages/{s}" for s in PHASES["reconstruct"] if s != "write"},
+                 "animate": "run/stages/animate", "render": "run/render"}
+"""The folder of each cached stage."""
+TARGETS = [("synth", "any"),
+           ("reconstruct", "start"), ("reconstruct", "mesh"), ("reconstruct", "mesh"), ("reconstruct", "garment"),
+           ("reconstruct", "fit_splats"), ("reconstruct", "base_color"), ("reconstruct", "material"),
+           ("reconstruct", "write"), ("reconstruct", "overwrite"),
+           ("animate", "start"), ("animate", "animate"), ("animate", "animate"), ("animate", "write"),
+           ("animate", "overwrite"),
+           ("render", "start"), ("render", "render"), ("render", "render"), ("render", "render"), ("render", "render")]
+"""20 kills: 'any' is a moment of the whole command, 'start' its start-up (imports, input checks), 'overwrite'
+the writing of the output files over a complete earlier result."""
+POLL = 0.002
+ATTEMPTS = 5
+"""Tries per target: a phase can end before the signal (a write of a few milliseconds is not seen, a phase runs
+faster than in the uninterrupted run); each try draws its delay from a range 4 times shorter."""
 
 
-def outputs(run: Path) -> dict[str, str]:
-    """Hashes of the run's result files; run.json without its wall-clock figures (seconds, frames per second)."""
-    out = {name: hashlib.sha256((run / name).read_bytes()).hexdigest() for name in ("garment.npz", "body.npz")}
-    meta = json.loads((run / "run.json").read_text())
-    for key in ("seconds", "frames_per_second"):
-        meta["figures"].pop(key, None)
-    out["run.json"] = json.dumps(meta, sort_keys=True)
-    return out
+def argv(command: str, w: Path) -> list[str]:
+    cfg = ["--config", str(w / "c.toml"), "--quiet"]
+    return [sys.executable, "-m", "pgc.cli", *{
+        "synth": ["synth", str(w / "cap"), "--preset", "tiny", "--views", "4", "--resolution", "32", "--spp", "4"],
+        "reconstruct": ["reconstruct", str(w / "cap"), "--out", str(w / "asset"), *cfg],
+        "animate": ["animate", str(w / "asset"), "--motion", "spooky", "--out", str(w / "run"), *cfg],
+        "render": ["render", str(w / "run"), *cfg]}[command]]
 
 
-def animate(tmp: Path, run: Path) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "pgc.cli", "animate", str(tmp / "asset"), "--motion",
-                             str(tmp / "m.npz"), "--out", str(run), "--config", str(tmp / "c.toml"), "--quiet"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+class Command:
+    """One command running in the background, its stderr in a file, watched for the phases it starts."""
+
+    def __init__(self, command: str, w: Path, log: Path) -> None:
+        self.command, self.w, self.log = command, w, log
+        with open(log, "w") as err:
+            self.proc = subprocess.Popen(argv(command, w), stdout=subprocess.DEVNULL, stderr=err, cwd=w.parent)
+        self.start = time.perf_counter()
+        self.seen: dict[str, float] = {}
+
+    def look(self, phases: list[str]) -> None:
+        for phase in phases:
+            if phase not in self.seen and glob.glob(str(self.w / PHASES[self.command][phase].format(
+                    pid=self.proc.pid))):
+                self.seen[phase] = time.perf_counter() - self.start
+
+    def wait_for(self, phase: str) -> str | None:
+        """Wait until ``phase`` or a later one has started; which one (None when the command ended first)."""
+        later = list(PHASES[self.command])[list(PHASES[self.command]).index(phase):]
+        while self.proc.poll() is None:
+            self.look(later)
+            for p in later:
+                if p in self.seen:
+                    return p
+            time.sleep(POLL)
+        return None
+
+    def finish(self, watch: bool = False) -> tuple[int, str]:
+        """Wait for the end (``watch``: noting the phases on the way); the exit code and stderr."""
+        while watch and self.proc.poll() is None:
+            self.look(list(PHASES[self.command]))
+            time.sleep(POLL)
+        return self.proc.wait(), self.log.read_text()
+
+
+def timeline(command: str, w: Path, log: Path) -> dict[str, float]:
+    """Run ``command`` to its end: the duration (s) of its start-up ('start'), of each phase it went through and
+    of the whole ('any')."""
+    run = Command(command, w, log)
+    code, err = run.finish(watch=True)
+    assert code == 0, err
+    total = time.perf_counter() - run.start
+    times = sorted(run.seen.items(), key=lambda kv: kv[1])
+    ends = [t for _, t in times[1:]] + [total]
+    return {"any": total, "start": times[0][1] if times else total,
+            **{phase: end - t for (phase, t), end in zip(times, ends)}}
+
+
+def comparable(path: Path, w: Path) -> bytes:
+    """A file's bytes; for stage records, whose figures include the stage's seconds, their content without
+    the timings."""
+    if path.name != STAGE_META:
+        return path.read_bytes()
+    return json.dumps(split_timings(json.loads(path.read_text()))[0], sort_keys=True).encode()
+
+
+def outputs(w: Path) -> dict[str, str]:
+    """sha256 of every file below ``w`` (relative names) but the lock files and the wall-clock timings."""
+    return {str(p.relative_to(w)): hashlib.sha256(comparable(p, w)).hexdigest() for p in sorted(w.rglob("*"))
+            if p.is_file() and p.name not in (LOCK_NAME, TIMINGS)}
 
 
 @pytest.mark.slow
-def test_animate_killed_at_random_moments_resumes_to_the_uninterrupted_result(tmp_path):
-    from test_hostile import tiny_asset
-
-    write_asset(tmp_path / "asset", tiny_asset())
-    v = seamed_cube().vertices
-    np.savez(tmp_path / "m.npz", vertices=np.stack([v + [0, 0.002 * t, 0] for t in range(15)]),
-             faces=seamed_cube().faces, fps=30.0)
-    (tmp_path / "c.toml").write_text(CONFIG)
+def test_a_pipeline_killed_at_20_random_moments_resumes_to_the_uninterrupted_result(tmp_path):
+    w = tmp_path / "w"
+    w.mkdir()
+    (w / "c.toml").write_text(CONFIG)
     start = time.perf_counter()
-    ref = animate(tmp_path, tmp_path / "ref")
-    assert ref.wait() == 0, ref.stderr.read()
-    duration = time.perf_counter() - start
+    durations = {c: timeline(c, w, tmp_path / "ref.log") for c in PIPELINE}
+    print(f"uninterrupted run {time.perf_counter() - start:.1f} s:", durations)
+    (tmp_path / "w").rename(tmp_path / "ref")  # the kills run in the same folder: the same absolute paths
     expected = outputs(tmp_path / "ref")
+    w.mkdir()
+    (w / "c.toml").write_text(CONFIG)
 
     rng = np.random.default_rng(20261201)
-    run = tmp_path / "run"
-    killed = 0
-    for i in range(KILLS):
-        if i % 5 == 4:  # now and then a finished run, then an overwrite killed over it
-            run_to_end = animate(tmp_path, run)
-            assert run_to_end.wait() == 0, run_to_end.stderr.read()
-            (run / "stages" / "animate" / "stage.json").unlink()  # force a recompute that the kill interrupts
-        proc = animate(tmp_path, run)
-        time.sleep(float(rng.uniform(0.0, duration)))
-        sig = SIGNALS[i % len(SIGNALS)]
-        proc.send_signal(sig)
-        code = proc.wait()
-        err = proc.stderr.read()
-        if code != 0:
-            killed += 1
-            # 130: pgc's interrupt path; -SIGINT: the interpreter's own (a signal during start-up or shut-down)
-            assert code in (130, -signal.SIGINT, -signal.SIGKILL, -sig), (sig, code, err)
-            # a SIGINT that lands while the interpreter still imports (before pgc's handler) is Python's own
+    complete = dict.fromkeys(PIPELINE, False)
+    hit: list[tuple[str, str, str, int]] = []
+    for command, phase in TARGETS:
+        for upstream in PIPELINE[:PIPELINE.index(command) + (phase == "overwrite")]:
+            if not complete[upstream]:
+                code, err = Command(upstream, w, tmp_path / "resume.log").finish()
+                assert code == 0, err
+                complete[upstream] = True
+        for attempt in range(ATTEMPTS):
+            sig = SIGNALS[len(hit) % len(SIGNALS)]
+            aim = "write" if phase == "overwrite" else phase
+            delay = float(rng.uniform(0.0, durations[command].get(aim, 0.0) / 4 ** attempt))
+            run = Command(command, w, tmp_path / "kill.log")
+            reached = run.wait_for(aim) if aim in PHASES[command] else aim
+            if reached == aim and aim != "write":  # within the phase; a later one (this one cached): at once
+                time.sleep(delay)
+            if run.proc.poll() is None:
+                run.proc.send_signal(sig)
+            code, err = run.finish()
+            if code == 0:  # ended before the signal: the phase was cached or too short to be seen
+                complete[command] = True
+                if aim in STAGE_FOLDERS:  # its record lost, the stage is computed again
+                    (w / STAGE_FOLDERS[aim] / STAGE_META).unlink()
+                continue
+            complete[command] = False
+            # 130: pgc's interrupt path; -SIGINT: the interpreter's own (the signal came before pgc's handler)
+            assert code in (130, -signal.SIGINT, -signal.SIGKILL, -sig), (command, phase, sig, code, err)
             assert "Traceback" not in err or code == -signal.SIGINT, err
-    assert killed >= KILLS // 2, f"only {killed} of {KILLS} runs were interrupted before finishing"
-    final = animate(tmp_path, run)
-    assert final.wait() == 0, final.stderr.read()
-    assert outputs(run) == expected
-    assert not list((run / "stages").glob(".animate.*")), "orphan temporary stage folders left"
-    assert not is_locked(run)
-    assert os.listdir(run / "stages") == ["animate"]
+            assert code != 130 or "interrupted; completed stages are kept" in err, err
+            for folder in ("asset", "run"):
+                assert not is_locked(w / folder), f"{folder} still locked after {command} was killed"
+            hit.append((command, phase, sig.name, code))
+            break
+        else:
+            pytest.fail(f"{command} ended {ATTEMPTS} times before its phase '{phase}' could be interrupted")
+    assert len(hit) == len(TARGETS)
+    for command in PIPELINE:  # the last resume
+        if not complete[command]:
+            code, err = Command(command, w, tmp_path / "final.log").finish()
+            assert code == 0, err
+    print(f"{time.perf_counter() - start:.1f} s in all:", hit)
+
+    leftovers = [str(p) for p in w.rglob(".*") if p.name != LOCK_NAME]
+    assert not leftovers, f"orphan temporary files or folders: {leftovers}"
+    assert not is_locked(w / "asset") and not is_locked(w / "run")
+    got = outputs(w)
+    assert got.keys() == expected.keys()
+    assert [name for name in got if got[name] != expected[name]] == [], hit
+
+
+def test_a_rewrite_removes_the_temporary_files_of_killed_writes_only(tmp_path):
+    """An atomic write removes the temporary files that earlier writes of the same target left when killed
+    (their process is gone), not those of a live writer nor those of other targets."""
+    gone = subprocess.Popen([sys.executable, "-c", "pass"])
+    gone.wait()
+    assert not process_alive(gone.pid)
+    dead = tmp_path / f".a.{gone.pid}.x1y2z3.tmp.npz"
+    live = tmp_path / f".a.{os.getpid()}.q9w8e7.tmp.npz"
+    other = tmp_path / f".a.b.{gone.pid}.r5t6y7.tmp.npz"
+    for p in (dead, live, other):
+        p.write_bytes(b"half")
+    with atomic_path(tmp_path / "a.npz") as tmp:
+        tmp.write_bytes(b"whole")
+    assert (tmp_path / "a.npz").read_bytes() == b"whole"
+    assert not dead.exists() and live.exists() and other.exists()

@@ -78,11 +78,12 @@ def check_out_folder(path: str | os.PathLike, option: str = "--out") -> Path:
     return out
 
 
-def check_out_file(path: str | os.PathLike, option: str = "--out") -> Path:
-    """``path`` as an output file that can be written (its folder is created if missing), else a clear error."""
+def check_out_file(path: str | os.PathLike, option: str = "--out", example: str = "metrics.json") -> Path:
+    """``path`` as an output file that can be written (its folder is created if missing), else a clear error
+    (``example``: a file name the message suggests inside a folder given by mistake)."""
     out = Path(path)
     if out.is_dir():
-        raise PGCDataError(f"{option} {out}: is a folder; give a file path (e.g. {out / 'metrics.json'})")
+        raise PGCDataError(f"{option} {out}: is a folder; give a file path (e.g. {out / example})")
     check_out_folder(out.parent if str(out.parent) else Path("."), option=f"{option} {out}: folder")
     return out
 
@@ -130,9 +131,34 @@ def check_run(run: str | os.PathLike) -> dict[str, Any]:
     if meta.get("capture") is not None and not isinstance(meta["capture"], str):
         raise PGCDataError(f"{run / 'run.json'}: field 'capture' must be a folder path or null; {fix}")
     for name in ("garment.npz", "body.npz"):
-        if not (run / name).is_file():
-            raise PGCDataError(f"{run / name}: not found; the run folder is incomplete: {fix}")
+        check_frames_file(run / name, meta["frames"], fix)
     from pgc.io.asset import read_manifest
 
     read_manifest(meta["asset"])
     return meta
+
+
+def check_frames_file(path: Path, frames: int, fix: str) -> None:
+    """A run's ``garment.npz``/``body.npz``: a readable archive (no pickles) with finite ``vertices``
+    (frames, V, 3) and integer ``faces`` (F, 3) indexing them, else a clear error naming the file."""
+    import zipfile
+
+    import numpy as np
+
+    if not path.is_file():
+        raise PGCDataError(f"{path}: not found; the run folder is incomplete: {fix}")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            vertices, faces = z["vertices"], z["faces"]
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as exc:
+        raise PGCDataError(f"{path}: not a readable run file ({type(exc).__name__}: {exc}); {fix}") from None
+    if not np.issubdtype(vertices.dtype, np.number) or vertices.shape[:1] != (frames,) or vertices.ndim != 3 \
+            or vertices.shape[2] != 3:
+        raise PGCDataError(f"{path}: 'vertices' must be ({frames}, V, 3) numbers (run.json says {frames} frames), "
+                           f"got {vertices.dtype} {vertices.shape}; {fix}")
+    if not np.all(np.isfinite(vertices)):
+        raise PGCDataError(f"{path}: 'vertices' holds non-finite positions; {fix}")
+    if not np.issubdtype(faces.dtype, np.integer) or faces.ndim != 2 or faces.shape[1:] != (3,) or not faces.size \
+            or faces.min() < 0 or faces.max() >= vertices.shape[1]:
+        raise PGCDataError(f"{path}: 'faces' must be (F, 3) integer indices of its {vertices.shape[1]} vertices; "
+                           f"{fix}")

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from pgc.commands._common import check_out_file, check_out_folder, check_run, emit
+from pgc.commands._common import check_not_inside, check_out_file, check_out_folder, check_run, emit
 
 EPILOG = """\
 examples:
@@ -30,7 +30,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "obj-seq (a folder of OBJ meshes per frame). Every file is written atomically.",
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("source", help="asset folder (with manifest.json) or run folder (with run.json)")
-    p.add_argument("--format", required=True, choices=("gltf", "usd", "ply-seq", "obj-seq"), help="output format")
+    p.add_argument("--format", required=True, metavar="{gltf,usd,ply-seq,obj-seq}", help="output format")
     p.add_argument("--out", required=True, help="output file (.glb; .usda/.usdc/.usd) or folder (ply-seq, obj-seq)")
     p.add_argument("--json", action="store_true", help="print the written files as JSON")
     p.set_defaults(func=run)
@@ -66,14 +66,30 @@ def load_source(path: str | Path) -> tuple[str, Any, Any, dict[str, Any]]:
     return "run", asset, Animation(garment, body, faces, float(run.get("fps", 30.0))), run
 
 
+def check_out(fmt: str, out: str) -> None:
+    """The format and the output path (suffix, writable, not inside an asset) before any reading."""
+    from pgc.errors import PGCDataError
+    from pgc.io.export import FORMATS, USD_SUFFIXES
+
+    if fmt not in FORMATS:
+        raise PGCDataError(f"--format {fmt!r}: unknown export format; use one of {', '.join(FORMATS)}")
+    if fmt in ("gltf", "usd"):
+        suffixes = (".glb",) if fmt == "gltf" else USD_SUFFIXES
+        if Path(out).suffix.lower() not in suffixes:
+            raise PGCDataError(f"--out {out}: the {fmt} format writes a {' or '.join(suffixes)} file; name the "
+                               f"output PATH{suffixes[0]}")
+        check_out_file(out, example=f"garment{suffixes[0]}")
+    else:
+        check_out_folder(out)
+
+
 def run(args: argparse.Namespace) -> int:
     from pgc.io.export import export
 
-    if args.format in ("gltf", "usd"):
-        check_out_file(args.out)
-    else:
-        check_out_folder(args.out)
-    kind, asset, anim, _ = load_source(args.source)
+    check_out(args.format, args.out)
+    kind, asset, anim, meta = load_source(args.source)
+    asset_dir = meta["asset"] if kind == "run" else args.source
+    check_not_inside(args.out, asset_dir, "asset folder")
     files = export(args.format, args.out, asset, anim)
     emit(args, {"source": args.source, "kind": kind, "format": args.format, "frames": anim.frames,
                 "files": [str(f) for f in files]},

@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 from typing import Any
 
-from pgc.commands._common import emit
+from pgc.commands._common import emit, read_json_file
 
 EPILOG = """\
 examples:
@@ -60,14 +59,24 @@ def run_info(folder: Path, run: dict[str, Any], frames: int) -> dict[str, Any]:
                            "simulation": {k: v for k, v in run.get("figures", {}).items() if not isinstance(v, list)}}
     render = folder / "render" / "render.json"
     if render.is_file():
-        meta = json.loads(render.read_text())
+        meta = read_object(render, f"render the run again with 'pgc render {folder}'")
         out["render"] = {k: meta.get(k) for k in ("frames", "cameras", "kernel_size", "far_source", "light")}
     metrics = folder / "metrics.json"
     if metrics.is_file():
-        m = json.loads(metrics.read_text())
+        m = read_object(metrics, f"evaluate the run again with 'pgc eval {folder} --gt CAPTURE'")
         out["metrics"] = {k: {n: x for n, x in v.items() if n != "per_frame"} for k, v in m.items()
                           if isinstance(v, dict) and "per_frame" in v}
     return out
+
+
+def read_object(path: Path, fix: str) -> dict[str, Any]:
+    """A JSON object from ``path``, else a clear error naming the file."""
+    from pgc.errors import PGCDataError
+
+    data = read_json_file(path, path.name, fix)
+    if not isinstance(data, dict):
+        raise PGCDataError(f"{path}: must be a JSON object, got {type(data).__name__}; {fix}")
+    return data
 
 
 def _fmt(value: Any) -> str:
@@ -86,7 +95,7 @@ def as_text(info: dict[str, Any]) -> str:
         lines += [f"  simulation {k}: {_fmt(v)}" for k, v in info["simulation"].items()]
         if "render" in info:
             r = info["render"]
-            light = r.get("light") or {}
+            light = r["light"] if isinstance(r.get("light"), dict) else {}
             kind = ("environment map" if light.get("envmap") else "fitted capture light") + \
                 (", rotating 360 deg" if light.get("rotating") else "")
             lines.append(f"  rendered frames {r['frames']} from cameras {r['cameras']}, kernel {r['kernel_size']} px, "
@@ -107,8 +116,9 @@ def as_text(info: dict[str, Any]) -> str:
               f"  light: radiance {_fmt(info['light']['radiance'])}, rotation {info['light']['rotation_deg']} deg, "
               f"envmap {info['light']['envmap']}"]
     seconds = info.get("timings", {}).get("seconds", {})
-    if seconds:
-        lines.append("  stage seconds: " + ", ".join(f"{k} {v:.1f}" for k, v in seconds.items()))
+    if isinstance(seconds, dict) and seconds:  # timings.json is informative: what is not a number is left out
+        lines.append("  stage seconds: " + ", ".join(f"{k} {v:.1f}" for k, v in seconds.items()
+                                                     if isinstance(v, (int, float))))
     for stage, figs in info["figures"].items():
         if isinstance(figs, dict):
             scalars = {k: v for k, v in figs.items() if isinstance(v, (int, float, str))}

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
-from pgc.commands._common import emit
+from pgc.commands._common import check_out_folder, emit, read_json_file
+from pgc.errors import PGCDataError
 
 EPILOG = """\
 examples:
@@ -31,9 +33,45 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def check_inputs(folder: Path, bench: str | None) -> None:
+    """What the report reads (run.json and metrics.json of each run, the demo's metrics.json, the bench
+    records) and where it writes (FOLDER/report.html, FOLDER/report/), before any picture is made."""
+    if not folder.is_dir():
+        raise PGCDataError(f"{folder}: not a folder; give a demo output folder (pgc demo --out) or a run folder "
+                           "(pgc animate, then pgc render)")
+    runs = [folder] if (folder / "run.json").is_file() else sorted(
+        p for p in (folder / "runs").glob("*") if (p / "render" / "render.json").is_file())
+    if folder not in runs:
+        _object(folder / "metrics.json", "rerun 'pgc demo' into this folder", optional=True)
+    for run in runs:
+        _object(run / "run.json", f"re-create the run with 'pgc animate ... --out {run}'")
+        _object(run / "metrics.json", f"evaluate the run again with 'pgc eval {run} --gt CAPTURE'", optional=True)
+    if bench is not None:
+        path = Path(bench) / "bench.json" if Path(bench).is_dir() else Path(bench)
+        data = read_json_file(path, "bench.json", "make one with 'pgc bench --out DIR' and pass that DIR")
+        if not isinstance(data.get("records") if isinstance(data, dict) else data, list):
+            raise PGCDataError(f"{path}: expected a list of bench records (or an object with 'records'); rerun "
+                               "'pgc bench'")
+    check_out_folder(folder, option="FOLDER")
+    if (folder / "report").exists() and not (folder / "report").is_dir():
+        raise PGCDataError(f"{folder / 'report'}: is a file, but the report's pictures go into this folder; move "
+                           "the file away")
+    if (folder / "report.html").is_dir():
+        raise PGCDataError(f"{folder / 'report.html'}: is a folder, but the report is written to this path; move "
+                           "the folder away")
+
+
+def _object(path: Path, fix: str, optional: bool = False) -> None:
+    if optional and not path.exists():
+        return
+    if not isinstance(read_json_file(path, path.name, fix), dict):
+        raise PGCDataError(f"{path}: must be a JSON object; {fix}")
+
+
 def run(args: argparse.Namespace) -> int:
     from pgc.pipeline.report import report_folder
 
+    check_inputs(Path(args.folder), args.bench)
     result = report_folder(args.folder, args.bench)
     emit(args, result, f"report: {result['path']} ({result['files']} files, {result['bytes'] / 1024:.0f} KiB)")
     return 0

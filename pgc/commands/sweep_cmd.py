@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from pgc.commands._common import emit, reporter_for
+from pgc.commands._common import check_out_folder, emit, reporter_for
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -27,10 +27,26 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def check_options(args: argparse.Namespace) -> None:
+    """The command-line options, before the sweep file is read."""
+    from pgc.errors import PGCConfigError
+    from pgc.sweep.engine import parse_scheduler
+
+    if args.scheduler is not None:
+        parse_scheduler(args.scheduler)
+    if args.retries < 0:
+        raise PGCConfigError(f"--retries {args.retries}: give 0 or more retries of a failed task")
+    if args.threads is not None and args.threads < 1:
+        raise PGCConfigError(f"--threads {args.threads}: give 1 or more threads per task (or leave it out)")
+    if args.out is not None:
+        check_out_folder(args.out)
+
+
 def run(args: argparse.Namespace) -> int:
     from pgc.sweep.runner import run_sweep
     from pgc.sweep.table import text_table
 
+    check_options(args)
     registry, reporter = reporter_for(args)
     result = run_sweep(args.sweep, args.out, args.scheduler, reporter, registry, args.retries, args.threads)
     failed = "".join(f"\nfailed: {k}: {v}" for k, v in result["failed"].items())

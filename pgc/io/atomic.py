@@ -1,11 +1,14 @@
 """Atomic file writes: write to a temporary file beside the target, fsync, then rename.
 
-A crash mid-write leaves the previous file intact; readers never see a half-written file.
+A crash mid-write leaves the previous file intact; readers never see a half-written file. The temporary file
+is named ``.<stem>.<pid>.<random>.tmp<suffix>``: a process killed mid-write (SIGKILL) leaves it behind, and
+the next write of the same target removes the ones whose process is gone.
 """
 
 from __future__ import annotations
 
 import contextlib
+import glob
 import json
 import math
 import os
@@ -22,7 +25,8 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}", dir=path.parent)
+    remove_orphans(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.{os.getpid()}.", suffix=f".tmp{path.suffix}", dir=path.parent)
     os.close(fd)
     tmp_path = Path(tmp)
     try:
@@ -33,6 +37,30 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
+
+
+def remove_orphans(path: Path) -> list[Path]:
+    """Remove the temporary files of earlier writes of ``path`` whose process is gone (killed mid-write);
+    returns what was removed. A temporary file of a live process (a concurrent writer) is kept."""
+    prefix, suffix = f".{path.stem}.", f".tmp{path.suffix}"
+    removed = []
+    for tmp in path.parent.glob(f"{glob.escape(prefix)}*{glob.escape(suffix)}"):
+        pid, _, rest = tmp.name[len(prefix):-len(suffix)].partition(".")
+        if pid.isdigit() and rest and "." not in rest and tmp.is_file() and not process_alive(int(pid)):
+            tmp.unlink(missing_ok=True)
+            removed.append(tmp)
+    return removed
+
+
+def process_alive(pid: int) -> bool:
+    """Whether a process ``pid`` exists (a pid reused by another process counts as alive: nothing is lost)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
 
 
 @contextlib.contextmanager

@@ -1,8 +1,9 @@
 """Wall-clock figures kept apart from results, so that the same inputs give byte-identical assets and runs.
 
-A figure is a timing when its key is ``seconds``, starts with ``seconds_`` or ends with ``_seconds`` (at any
-depth of dicts and lists). :func:`split_timings` separates them; an asset or run folder keeps them in
-``timings.json`` (a measurement of this run, written after the folder's manifest and never hashed into it).
+A figure is a timing when its key is ``seconds``, starts with ``seconds_`` or ends with ``_seconds`` or
+``_per_second`` (at any depth of dicts and lists). :func:`split_timings` separates them; an asset or run folder
+keeps them in ``timings.json`` (a measurement of this run, written after the folder's manifest and never hashed
+into it).
 """
 
 from __future__ import annotations
@@ -17,8 +18,8 @@ TIMINGS = "timings.json"
 
 
 def is_timing(key: str) -> bool:
-    """Whether a figure named ``key`` is a wall-clock measurement."""
-    return key == "seconds" or key.startswith("seconds_") or key.endswith("_seconds")
+    """Whether a figure named ``key`` is a wall-clock measurement (seconds, or a rate per second)."""
+    return key == "seconds" or key.startswith("seconds_") or key.endswith(("_seconds", "_per_second"))
 
 
 def split_timings(figures: Any) -> tuple[Any, Any]:

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Generic, TypeVar
 
-from pgc.io.atomic import write_json
+from pgc.io.atomic import process_alive, write_json
 
 T = TypeVar("T")
 CACHE_FORMAT = 2
@@ -124,7 +124,7 @@ class StageCache:
         for tmp in self.root.glob(f".{stage}.*"):
             parts = tmp.name.split(".")
             pid = int(parts[2]) if len(parts) > 3 and parts[2].isdigit() else None
-            if tmp.is_dir() and (pid is None or not _alive(pid)):
+            if tmp.is_dir() and (pid is None or not process_alive(pid)):
                 shutil.rmtree(tmp, ignore_errors=True)
                 removed.append(tmp)
         return removed
@@ -155,13 +155,3 @@ class StageCache:
                 shutil.rmtree(tmp, ignore_errors=True)
         return StageResult(value, key, False, final)
 
-
-def _alive(pid: int) -> bool:
-    """Whether a process ``pid`` exists (a pid reused by another process counts as alive: nothing is lost)."""
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True

@@ -141,9 +141,9 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
         # the body casts shadows on the garment: the renderer splits it off by label
         scene = with_occluder(garment, body_occluder(full.value, capture.garment_label_ids))
         fit = renderer.fit(capture, scene, init, mat_settings, reporter)
-        (folder / "material.json").write_text(json.dumps(
-            {"brdf": fit.material.brdf, "params": fit.material.params,
-             "light": {"radiance": fit.light.radiance.tolist()}, "figures": fit.figures}, indent=2))
+        write_json(folder / "material.json",  # the fit's seconds stay in stage.json: the same bytes every run
+                   {"brdf": fit.material.brdf, "params": fit.material.params,
+                    "light": {"radiance": fit.light.radiance.tolist()}, "figures": split_timings(fit.figures)[0]})
         return (fit.material, fit.light), fit.figures
 
     def load_material(folder: Path):

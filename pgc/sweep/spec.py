@@ -8,6 +8,7 @@ and the key.
 from __future__ import annotations
 
 import itertools
+import re
 import tomllib
 from dataclasses import dataclass, field
 from importlib import resources
@@ -90,6 +91,12 @@ def load_sweep(path: str | Path, registry: Any = None) -> Sweep:
     _unknown(path, "", data, TOP_KEYS)
     head = _table(path, data, "sweep")
     _unknown(path, "[sweep]", head, SWEEP_KEYS)
+    if "name" in head:
+        _check_name(path, "[sweep].name", head["name"])
+    for key in ("base", "config"):
+        if key in head and not isinstance(head[key], str):
+            raise _fail(path, f"[sweep].{key}", f"{head[key]!r}: give a string ("
+                        + ("a demo preset name" if key == "base" else "a run configuration file") + ")")
     steps = head.get("steps", list(STEPS))
     if not isinstance(steps, list) or not steps:
         raise _fail(path, "[sweep].steps", f"give a list of steps from {', '.join(STEPS)}")
@@ -134,13 +141,31 @@ def _table(path: Path, data: dict[str, Any], key: str, required: bool = False) -
     return value
 
 
+NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
+"""Names that become parts of folder names (the sweep's, its scenes')."""
+
+
+def _check_name(path: Path, key: str, name: Any) -> None:
+    if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
+        raise _fail(path, key, f"{name!r}: a name here becomes part of a folder name; use letters, digits, '_', "
+                               "'.' and '-' (starting with a letter or digit)")
+
+
 def _check_motions(path: Path, motions: list[str], root: Path) -> None:
+    from pgc.errors import PGCDataError
+    from pgc.io.motion import load_motion
     from pgc.synth.motions import MOTIONS
 
     for m in motions:
-        if m not in MOTIONS and not (root / m).exists():
+        if m in MOTIONS:
+            continue
+        if not (root / m).exists():
             raise _fail(path, "[sweep].motions", f"'{m}' is neither a built-in motion ({', '.join(MOTIONS)}) nor a "
                                                  "file (paths are relative to the sweep file)")
+        try:
+            load_motion(root / m)
+        except PGCDataError as exc:
+            raise _fail(path, "[sweep].motions", str(exc)) from None
 
 
 def _scenes(path: Path, table: dict[str, Any]) -> list[Scene]:
@@ -152,12 +177,16 @@ def _scenes(path: Path, table: dict[str, Any]) -> list[Scene]:
     out = []
     for name, spec in table.items():
         where = f"[scenes.{name}]"
+        _check_name(path, where, name)
         if not isinstance(spec, dict):
             raise _fail(path, where, "must be a table (preset, garment, fabric, seed, framing; or capture)")
         _unknown(path, where, spec, SCENE_KEYS)
         if "capture" in spec:
             if set(spec) & SYNTH_KEYS:
                 raise _fail(path, where, "give either 'capture' (a folder) or a synthetic spec, not both")
+            if not isinstance(spec["capture"], str):
+                raise _fail(path, f"{where}.capture", f"{spec['capture']!r}: give the capture folder's path (a "
+                                                      "string, relative to the sweep file)")
             folder = (path.parent / spec["capture"]).resolve()
             if not (folder / "transforms.json").is_file():
                 raise _fail(path, f"{where}.capture", f"{folder} is not a capture folder (no transforms.json)")
