@@ -1,5 +1,6 @@
 """The same inputs and config give byte-identical outputs: assets from `pgc reconstruct`, runs from
-`pgc animate`."""
+`pgc animate`, and the stages that run on several threads (Open3D's Poisson solve, the Mitsuba material fit)
+whatever the thread count."""
 
 from __future__ import annotations
 
@@ -75,3 +76,48 @@ def test_two_reconstructions_of_one_capture_are_byte_identical(tmp_path, capsys)
                      str(tmp_path / "c.toml"), "--quiet"])
         assert code == 0, capsys.readouterr().err
     assert hashes(tmp_path / "a1") == hashes(tmp_path / "a2")
+
+
+def test_poisson_surface_is_identical_from_call_to_call():
+    """Open3D's multi-threaded solve changes the mesh from call to call (and with the thread count); the
+    reconstructor's solve does not."""
+    pytest.importorskip("open3d")
+    from pgc_open3d.reconstruct import poisson_surface
+
+    rng = np.random.default_rng(0)
+    normals = rng.normal(size=(20000, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    points = normals * (1.0 + 0.2 * np.sin(3.0 * normals[:, :1]))  # a bumpy sphere, outward normals
+    meshes = [poisson_surface(points, normals, 7, 0.02) for _ in range(3)]
+    assert len(meshes[0][1]) > 1000
+    for v, f in meshes[1:]:
+        assert v.tobytes() == meshes[0][0].tobytes() and f.tobytes() == meshes[0][1].tobytes()
+
+
+def test_material_fit_is_identical_whatever_the_jit_thread_count():
+    """The fit's gradients are summed over image blocks run on Dr.Jit's threads; the fitted material and light
+    are the same bytes with a pool of 1 or 2 threads, and from one fit to the next."""
+    pytest.importorskip("mitsuba")
+    from test_material_fit import FAST, synthetic_capture
+
+    from pgc.brdfs.scenes import checker_texture, folded_sheet
+    from pgc.registry import default_registry
+    from pgc.types import Material
+    from pgc_mitsuba.runtime import mitsuba
+
+    mitsuba()
+    import drjit as dr
+
+    texture = checker_texture(32)
+    capture = synthetic_capture(Material("pgc-sheen", {"roughness": 0.5}, texture), n_views=4, size=48, spp=16)
+    renderer = default_registry().create("pbr_renderer", "mitsuba", {"spp": 4, "max_depth": 2})
+    settings = FAST.model_copy(update={"max_iterations": 10, "max_image_side": 48})  # several blocks per film
+    previous, fits = dr.thread_count(), []
+    try:
+        for threads in (2, 1, 2):
+            dr.set_thread_count(threads)
+            fit = renderer.fit(capture, folded_sheet(n=16), Material("pgc-sheen", {}, texture), settings)
+            fits.append((fit.light.radiance.tobytes(), repr(sorted(fit.material.params.items()))))
+    finally:
+        dr.set_thread_count(previous)
+    assert fits[0] == fits[1] == fits[2]

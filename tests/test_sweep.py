@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from pgc.errors import PGCConfigError
-from pgc.sweep.engine import Task, pin_threads, run_tasks, thread_environment
+from pgc.sweep.engine import Task, run_tasks, thread_environment
 
 GOOD = """
 [sweep]
@@ -200,17 +200,9 @@ def tiny_sweep(tmp_path_factory):
     fast = Path(__file__).parents[1] / "examples" / "sweeps" / "tiny-fast.toml"
     path = root / "tiny.toml"
     path.write_text(TINY.format(fast=fast))
-    import torch
-
-    # the same thread allotment as a worker of the 2-process cluster below (cores // 2), restored afterwards
-    saved, threads = dict(os.environ), torch.get_num_threads()
-    pin_threads(max(1, len(os.sched_getaffinity(0)) // 2))
-    try:
-        return path, root / "here", run_sweep(path, root / "here")
-    finally:
-        os.environ.clear()
-        os.environ.update(saved)
-        torch.set_num_threads(threads)
+    # this process's own thread counts (torch: every core), not a worker's allotment: the records must not
+    # depend on them
+    return path, root / "here", run_sweep(path, root / "here")
 
 
 @pytest.mark.slow
@@ -275,10 +267,7 @@ def test_cluster_sweep_with_a_killed_worker_gives_the_in_process_records(tiny_sw
     assert killed, "no run task was seen running"
     assert result["failed"] == {}
     got, want = _comparable(result["records"], out), _comparable(reference["records"], here)
-    assert [(r["configuration"], r["variant"]) for r in got] == [(r["configuration"], r["variant"]) for r in want]
-    for g, w in zip(got, want):
-        assert {k: v for k, v in g.items() if k not in ("metrics", "figures")} == \
-               {k: v for k, v in w.items() if k not in ("metrics", "figures")}
-        # same tasks, folders, BRDF and metric names; the values themselves are not compared: the pipeline is not
-        # reproducible across processes (measured: LPIPS 17 %, SSIM 6 %, PSNR 0.7-1.7 % apart; docs/sweeps.md)
-        assert set(g["metrics"]) == set(w["metrics"]) and all(math.isfinite(v) for v in g["metrics"].values())
+    # the same records, values included (exactly): other processes, other thread counts (1 per worker here,
+    # every core in-process), a retried task
+    assert got == want
+    assert all(math.isfinite(v) for r in got for v in r["metrics"].values())

@@ -19,9 +19,10 @@ iterates; else the run ends at ``max_iterations`` with the last iterate.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 
@@ -56,7 +57,24 @@ def fit_material(renderer: Any, capture: Capture, mesh: Mesh, material: Material
     if material.brdf not in PARAMETERS:
         raise PGCDataError(f"material.brdf '{material.brdf}' cannot be fitted; use one of {sorted(PARAMETERS)}")
     fit_views = prepare_views(capture, settings.max_image_side)
-    return _optimise(renderer, fit_views, capture, mesh, material, settings, reporter)
+    with one_jit_thread():
+        return _optimise(renderer, fit_views, capture, mesh, material, settings, reporter)
+
+
+@contextlib.contextmanager
+def one_jit_thread() -> Iterator[None]:
+    """Run Dr.Jit's CPU kernels on one thread, restoring its pool afterwards. The gradients of the scene
+    parameters are accumulated by atomic adds from every thread in a racy order, so with more than one thread
+    a fit differs from run to run (and with the thread count); one thread gives the same fit every time."""
+    mitsuba()
+    import drjit as dr
+
+    previous = dr.thread_count()
+    dr.set_thread_count(1)
+    try:
+        yield
+    finally:
+        dr.set_thread_count(previous)
 
 
 def _find(params: Any, suffix: str) -> str:

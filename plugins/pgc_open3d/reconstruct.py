@@ -16,12 +16,15 @@ from pgc_open3d.specs_reconstruct import Open3DReconstructorOptions
 
 
 def poisson_surface(points: np.ndarray, normals: np.ndarray, depth: int, density_quantile: float) -> tuple[np.ndarray, np.ndarray]:
-    """Screened Poisson (Open3D) of oriented points; vertices under the density quantile are removed."""
+    """Screened Poisson (Open3D) of oriented points; vertices under the density quantile are removed.
+
+    One solver thread: Open3D's multi-threaded Poisson accumulates in a racy order, so its vertices change from
+    call to call (and with the thread count); one thread gives the same mesh every time."""
     import open3d as o3d
 
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
     pcd.normals = o3d.utility.Vector3dVector(normals)
-    mesh, density = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(pcd, depth=depth)
+    mesh, density = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(pcd, depth=depth, n_threads=1)
     density = np.asarray(density)
     if density_quantile > 0:
         mesh.remove_vertices_by_mask(density < np.quantile(density, density_quantile))
