@@ -7,7 +7,7 @@ import pytest
 
 from pgc.errors import PGCDataError
 from pgc.synth.body import BodyShape, make_body
-from pgc.synth.garments import boundary_loops, make_garment
+from pgc.synth.garments import RESTING_TOP_GAP, boundary_loops, make_garment
 from pgc.synth.motions import MOTIONS, make_motion, motion_rotations
 from pgc.synth.skeleton import JOINTS, axis_angle_to_matrix, joint_index, rotation_between
 
@@ -94,12 +94,13 @@ def test_bad_inputs_are_named():
         make_garment(make_body(edge_length=EDGE), "kilt")
 
 
-@pytest.mark.parametrize("kind", ["tshirt", "dress"])
-def test_garment_shell_does_not_intersect_the_body(body, kind):
+@pytest.mark.parametrize("kind, fit", [("tshirt", "loose"), ("dress", "loose"), ("tshirt", "resting"),
+                                       ("dress", "resting")])
+def test_garment_shell_does_not_intersect_the_body(body, kind, fit):
     from pgc_mitsuba.runtime import mesh_to_mitsuba, mitsuba
 
     mi = mitsuba()
-    g = make_garment(body, kind, resolution=EDGE)
+    g = make_garment(body, kind, resolution=EDGE, fit=fit, looseness=0.03 if fit == "loose" else 0.012)
     assert len(boundary_loops(g)) == 4  # hem, neck, two sleeves
     counts = _edge_counts(g.faces)
     assert np.all(counts <= 2)  # manifold with boundary
@@ -137,4 +138,4 @@ def test_garment_shell_does_not_intersect_the_body(body, kind):
     rc = o3d.t.geometry.RaycastingScene()
     rc.add_triangles(o3d.core.Tensor(body.vertices.astype(np.float32)), o3d.core.Tensor(body.faces.astype(np.uint32)))
     dist = rc.compute_distance(o3d.core.Tensor(g.vertices.astype(np.float32))).numpy()
-    assert dist.min() > 0.01, dist.min()
+    assert dist.min() > (0.01 if fit == "loose" else 0.5 * RESTING_TOP_GAP), dist.min()

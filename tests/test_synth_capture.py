@@ -243,16 +243,19 @@ def test_same_seed_gives_byte_identical_output_and_the_cli_works(tmp_path):
     from pgc.cli import main
     from pgc.synth.generate import generate, get_preset
 
-    args = ["--preset", "tiny", "--views", "2", "--resolution", "32", "--seed", "7", "--fabric", "fleece"]
+    args = ["--preset", "tiny", "--views", "2", "--resolution", "32", "--seed", "7", "--fabric", "fleece",
+            "--detail", "seams", "--fit", "resting", "--looseness", "0.015"]
     assert main(["synth", str(tmp_path / "a"), *args]) == 0
-    generate(tmp_path / "b", get_preset("tiny", views=2, resolution=32), fabric="fleece", seed=7)
+    generate(tmp_path / "b", get_preset("tiny", views=2, resolution=32), fabric="fleece", seed=7, detail="seams",
+             fit="resting", looseness=0.015)
     files_a = sorted(p.relative_to(tmp_path / "a") for p in (tmp_path / "a").rglob("*") if p.is_file())
     files_b = sorted(p.relative_to(tmp_path / "b") for p in (tmp_path / "b").rglob("*") if p.is_file())
     assert files_a == files_b and len(files_a) > 20
     for rel in files_a:
         assert (tmp_path / "a" / rel).read_bytes() == (tmp_path / "b" / rel).read_bytes(), rel
-    # the fleece has fibres, labelled garment, rendered and stored
+    # the fleece has fibres, labelled garment, rendered and stored, and the detail surface is stored
     assert (tmp_path / "a" / "ground_truth" / "fibres.npz").is_file()
+    assert (tmp_path / "a" / "ground_truth" / "detail.npz").is_file()
     # render-frames from the command line on .npz inputs
     from pgc.synth.ground_truth import read_ground_truth
 
@@ -273,6 +276,14 @@ def test_unknown_names_are_rejected():
         get_preset("huge")
     with pytest.raises(PGCDataError, match="fabrics: cotton"):
         get_fabric("silk")
+    from pgc.synth.body import make_body
+    from pgc.synth.detail import get_detail
+    from pgc.synth.garments import make_garment
+
+    with pytest.raises(PGCDataError, match="details: none, relief, seams"):
+        get_detail("lace")
+    with pytest.raises(PGCDataError, match="fits: loose, resting"):
+        make_garment(make_body(edge_length=0.04), "tshirt", fit="tight")
 
 
 def test_stored_body_model_and_motions_reproduce_the_body(tiny):

@@ -7,8 +7,9 @@ edges blend the person with the background by exact coverage), the named sampler
 rays of :func:`pgc.synth.render.subpixel_rays`, reduced by :func:`pgc.synth.render.layers_from_samples`.
 
 The garment's BSDF is :func:`pgc_mitsuba.bsdfs.material_to_bsdf` (the shared BRDF evaluation), wrapped in
-Mitsuba's ``normalmap`` when the fabric has a weave; the body is Lambertian (Mitsuba ``diffuse``); fibres
-are a ``linearcurve`` shape with the garment's BRDF in the fibres' colour.
+Mitsuba's ``normalmap`` when the fabric has a weave, on the garment's near-field detail surface when there is
+one (:mod:`pgc.synth.detail`); the body is Lambertian (Mitsuba ``diffuse``); fibres are a ``linearcurve``
+shape with the garment's BRDF in the fibres' colour.
 """
 
 from __future__ import annotations
@@ -96,8 +97,9 @@ class MitsubaSceneRenderer(SceneRenderer):
                                                 vertex_normals=True,
                                                 bsdf=mi.load_dict({"type": "diffuse", "reflectance": {
                                                     "type": "rgb", "value": list(geometry.skin_albedo)}}))
-            scene["garment"] = mesh_to_mitsuba(g.vertices, g.faces, name="garment", uv=g.uv, face_uv=g.face_uv,
-                                               vertex_normals=True,
+            surface = geometry.garment_surface()
+            scene["garment"] = mesh_to_mitsuba(surface.vertices, surface.faces, name="garment", uv=surface.uv,
+                                               face_uv=surface.face_uv, vertex_normals=True,
                                                bsdf=mi.load_dict(garment_bsdf(geometry.material, geometry.normal_map)))
             labels = {"body": LABEL_BODY, "garment": LABEL_GARMENT}
             if geometry.fibres is not None:

@@ -9,8 +9,8 @@ import json
 from pgc.errors import PGCDataError
 
 USAGE = """\
-pgc synth OUT [--preset tiny|default|large] [--garment tshirt|dress] [--fabric NAME] [--framing body|garment]
-          [--seed N]
+pgc synth OUT [--preset tiny|default|large|knit] [--garment tshirt|dress] [--fabric NAME]
+          [--framing body|garment] [--detail none|relief|seams] [--fit loose|resting] [--seed N]
 pgc synth render-frames CAPTURE GARMENT_NPZ BODY_NPZ OUT_DIR [--spp N]"""
 
 EPILOG = """\
@@ -25,8 +25,12 @@ forms:
                                 writes OUT_DIR/frame_####.npz (color, alpha, garment_mask, segmentation)
                                 and one sRGB PNG per frame and camera
 
-presets: tiny (6 views, 64 px, seconds), default (32 views, 256 px, the demo), large (64 views, 1024 px)
-fabrics: cotton, fleece, knit, satin-like, lambertian
+presets: tiny (6 views, 64 px, seconds), default (32 views, 256 px, the demo), large (64 views, 1024 px),
+         knit (32 views, 320 px, garment framing: a rib-knit tee resting on the body with relief, ribbed
+         bands, seams, a patch pocket and folds as geometry)
+fabrics: cotton, fleece, knit, rib-knit, satin-like, lambertian
+details: none (the simulation mesh), relief (knit wales, ribbed bands, seams, pocket, folds), seams (the same
+         without the knit wales)
 """
 
 
@@ -39,12 +43,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("paths", nargs="+", metavar="OUT", help="output folder (or 'render-frames' and its paths)")
     p.add_argument("--preset", default="default", help="tiny, default or large (default: default)")
     p.add_argument("--garment", default=None, help="tshirt or dress (default: the preset's)")
-    p.add_argument("--fabric", default=None, help="cotton, fleece, knit, satin-like, lambertian (default: the "
+    p.add_argument("--fabric", default=None, help="cotton, fleece, knit, rib-knit, satin-like, lambertian "
+                                                  "(default: the preset's)")
+    p.add_argument("--detail", default=None, help="near-field geometry: none, relief or seams (default: the "
                                                   "preset's)")
+    p.add_argument("--fit", default=None, help="loose or resting (hangs from the shoulders) (default: the "
+                                               "preset's)")
     p.add_argument("--framing", default=None, choices=("body", "garment"),
                    help="what the cameras frame: the whole body or the garment (default: the preset's)")
     p.add_argument("--seed", type=int, default=0, help="random seed; the same seed gives identical files")
-    p.add_argument("--looseness", type=float, default=0.03, help="garment clearance from the body, metres")
+    p.add_argument("--looseness", type=float, default=None,
+                   help="garment clearance from the body, metres (resting fit: at the waist) (default: the preset's)")
     p.add_argument("--views", type=int, default=None, help="override the preset's number of cameras")
     p.add_argument("--resolution", type=int, default=None, help="override the preset's image size, pixels")
     p.add_argument("--spp", type=int, default=None, help="override the path-tracing samples per pixel")
@@ -72,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
     preset = get_preset(args.preset, views=args.views, resolution=args.resolution, spp=args.spp,
                         framing=args.framing)
     capture = generate(args.paths[0], preset, garment=args.garment, fabric=args.fabric, seed=args.seed,
-                       looseness=args.looseness, reporter=reporter)
+                       looseness=args.looseness, reporter=reporter, detail=args.detail, fit=args.fit)
     summary = {"out": capture.root, "views": len(capture.views), "resolution": preset.resolution,
                "spp": preset.spp, "contact_sheet": f"{capture.root}/contact_sheet.png",
                "ground_truth": f"{capture.root}/ground_truth", "seconds": reporter.timings}

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pgc.errors import PGCDataError
+from pgc.synth.embed import embedded_points
 from pgc.types import Material, Mesh
 
 
@@ -49,6 +50,10 @@ FABRICS: dict[str, Fabric] = {
                                         "sheen_roughness": 0.35},
                    "knit", ((0.28, 0.03, 0.05), (0.62, 0.50, 0.34)), weave_period=0.006, weave_depth=0.5,
                    fibre_density=1200.0, fibre_length=0.005, fibre_radius=0.0003),
+    "rib-knit": Fabric("rib-knit", "pgc-sheen", {"roughness": 0.85, "sheen_color": [0.22, 0.2, 0.18],
+                                                "sheen_roughness": 0.4},
+                       "heather", ((0.50, 0.40, 0.29), (0.60, 0.50, 0.37)), weave_period=0.004, weave_depth=0.3,
+                       fibre_density=1200.0, fibre_length=0.006, fibre_radius=0.0003),
     "satin-like": Fabric("satin-like", "pgc-sheen", {"roughness": 0.4, "sheen_color": [0.85, 0.83, 0.78],
                                                     "sheen_roughness": 0.22},
                          "checks", ((0.04, 0.09, 0.32), (0.02, 0.20, 0.21)), weave_period=0.002, weave_depth=0.1),
@@ -87,7 +92,7 @@ def _smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
     return t * t * (3 - 2 * t)
 
 
-def _value_noise(p: np.ndarray, cell: float, seed: int) -> np.ndarray:
+def value_noise(p: np.ndarray, cell: float, seed: int) -> np.ndarray:
     """Smooth 3D value noise in [0, 1] with lattice spacing ``cell`` metres (deterministic per seed)."""
     q = p / cell
     i = np.floor(q).astype(np.int64)
@@ -146,9 +151,9 @@ def base_color(fabric: Fabric, positions: np.ndarray, texel_size: float, seed: i
         chevron = np.mod((y + np.abs(np.mod(angle / 0.03, 1.0) - 0.5) * 0.03) / 0.04, 1.0)
         t = _smoothstep(0.5 - aa / 0.04, 0.5 + aa / 0.04, np.abs(chevron - 0.5) * 2)[..., None]
         rgb = c[0] * (1 - t) + c[1] * t
-        rgb *= (0.85 + 0.3 * _value_noise(positions, 0.004, seed))[..., None]
+        rgb *= (0.85 + 0.3 * value_noise(positions, 0.004, seed))[..., None]
     elif kind == "heather":
-        n = _value_noise(positions, 0.01, seed) * 0.6 + _value_noise(positions, 0.003, seed + 1) * 0.4
+        n = value_noise(positions, 0.01, seed) * 0.6 + value_noise(positions, 0.003, seed + 1) * 0.4
         rgb = c[0] + (c[1] - c[0]) * n[..., None]
     elif kind == "solid":
         rgb = np.broadcast_to(c[0], positions.shape).copy()
@@ -216,11 +221,13 @@ class Fibres:
     radius: float
     color: np.ndarray
     """(3,) linear RGB base colour of the fibres."""
+    offset: np.ndarray | None = None
+    """(N,) root offset along the interpolated garment normal, metres (roots on a detail relief)."""
 
     def control_points(self, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
         """(N, K, 3) polyline control points on a garment with ``vertices`` (its rest or a deformed pose)."""
         v = vertices[faces[self.face]]
-        root = np.einsum("nk,nkd->nd", self.bary, v)
+        root = embedded_points(vertices, faces, self.face, self.bary, self.offset)
         e1 = v[:, 1] - v[:, 0]
         n = np.cross(e1, v[:, 2] - v[:, 0])
         n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-20)

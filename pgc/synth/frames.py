@@ -38,8 +38,8 @@ def render_frames(scene_dir_or_gt: str | os.PathLike | GroundTruth, garment_vert
     ground-truth meshes); ``light`` defaults to the capture light; ``spp`` to 64 (of Mitsuba's ``sampler``;
     the low-discrepancy sampler needs powers of 4). Returns one dict per
     frame with per-camera lists: 'color' (H, W, 3) linear RGB over the light's background, 'alpha' (H, W)
-    coverage, 'garment_mask' (H, W) garment coverage, 'segmentation' (H, W) labels. Fibres follow the
-    garment (rooted on its faces).
+    coverage, 'garment_mask' (H, W) garment coverage, 'segmentation' (H, W) labels. Fibres and the
+    near-field detail follow the garment (both are embedded in its faces).
     """
     gt = scene_dir_or_gt if isinstance(scene_dir_or_gt, GroundTruth) else read_ground_truth(scene_dir_or_gt)
     gv = _as_sequence("garment_vertices", garment_vertices, len(gt.garment.vertices))

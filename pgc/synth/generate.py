@@ -16,7 +16,7 @@ import numpy as np
 
 from pgc.errors import PGCDataError
 from pgc.events import Reporter
-from pgc.types import Capture, View
+from pgc.types import Capture, Mesh, View
 
 
 @dataclass(frozen=True)
@@ -49,6 +49,13 @@ class SynthPreset:
     framing: str = "body"
     """'body': the whole body fills the views; 'garment': the same dome cameras zoom onto the garment (its
     bounding sphere times ``GARMENT_FRAME_MARGIN``, room for the motions), so its fabric takes the pixels."""
+    detail: str = "none"
+    """Near-field detail (:data:`pgc.synth.detail.DETAILS`): 'none' or 'relief' (knit ribs, ribbed bands,
+    seams, a patch pocket, folds as real geometry embedded in the garment)."""
+    fit: str = "loose"
+    """Garment fit (:data:`pgc.synth.garments.FITS`): 'loose' or 'resting' (hangs from the shoulders)."""
+    looseness: float = 0.03
+    """Garment clearance from the body, metres ('resting': at the waist and below)."""
 
 
 PRESETS: dict[str, SynthPreset] = {
@@ -58,6 +65,9 @@ PRESETS: dict[str, SynthPreset] = {
                            gt_samples=4, fibre_scale=1.0),
     "large": SynthPreset(views=64, resolution=1024, body_edge=0.015, garment_edge=0.012, texture=2048, spp=64,
                          gt_samples=4, fibre_scale=2.0, envmap_height=256),
+    "knit": SynthPreset(views=32, resolution=320, body_edge=0.022, garment_edge=0.02, texture=1024, spp=64,
+                        gt_samples=4, fibre_scale=20.0, fabric="rib-knit", framing="garment", detail="relief",
+                        fit="resting", looseness=0.012),
 }
 
 
@@ -83,18 +93,32 @@ def framing_sphere(framing: str, height: float, garment_vertices: np.ndarray) ->
     raise PGCDataError(f"synth preset: unknown framing '{framing}'; use 'body' or 'garment'")
 
 
+def garment_gap(body: Mesh, garment: Mesh) -> dict[str, float]:
+    """Clearance of the garment's vertices from the body surface, metres: min, 10th percentile, median,
+    90th percentile, and the median over the top 15 % of the garment (shoulders, where it hangs)."""
+    from pgc.sim.collision import signed_distance
+
+    d = signed_distance(garment.vertices, body.vertices, body.faces)
+    y = garment.vertices[:, 1]
+    top = y >= np.quantile(y, 0.85)
+    q10, q50, q90 = np.quantile(d, [0.1, 0.5, 0.9])
+    return {"min": float(d.min()), "p10": float(q10), "median": float(q50), "p90": float(q90),
+            "shoulders_median": float(np.median(d[top]))}
+
+
 def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garment: str | None = None,
-             fabric: str | None = None, seed: int = 0, looseness: float = 0.03,
-             reporter: Reporter | None = None) -> Capture:
+             fabric: str | None = None, seed: int = 0, looseness: float | None = None,
+             reporter: Reporter | None = None, detail: str | None = None, fit: str | None = None) -> Capture:
     """Generate a synthetic capture into ``out`` and return it (as written).
 
     The same arguments give byte-identical files. ``preset``: a name of :data:`PRESETS` or a SynthPreset;
-    ``garment`` and ``fabric`` override the preset's.
+    ``garment``, ``fabric``, ``looseness``, ``detail`` and ``fit`` override the preset's.
     """
     from pgc.io.capture import write_capture
     from pgc.synth import fabrics, garments, rig
     from pgc.synth.body import make_body
     from pgc.synth.contact_sheet import write_contact_sheet
+    from pgc.synth.detail import get_detail, make_detail, root_offsets
     from pgc.synth.ground_truth import GroundTruth, shape_dict, write_ground_truth
     from pgc.synth.motions import MOTIONS, motion_rotations
     from pgc.synth.render import build_scene, ground_truth_layers, render_color
@@ -102,26 +126,36 @@ def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garm
     p = get_preset(preset) if isinstance(preset, str) else preset
     if p.sampler == "ldsampler":  # it takes powers of 4 only: round up rather than let Mitsuba warn
         p = replace(p, spp=int(4 ** np.ceil(np.log(max(p.spp, 1)) / np.log(4) - 1e-9)))
-    p = replace(p, garment=garment or p.garment, fabric=fabric or p.fabric)
-    garment, fabric = p.garment, p.fabric
+    p = replace(p, garment=garment or p.garment, fabric=fabric or p.fabric, detail=detail or p.detail,
+                fit=fit or p.fit, looseness=p.looseness if looseness is None else float(looseness))
+    garment, fabric, looseness = p.garment, p.fabric, p.looseness
     fab = fabrics.get_fabric(fabric)
+    detail_spec = get_detail(p.detail)
     reporter = reporter or Reporter.silent()
     out = Path(out)
 
     with reporter.stage("synth_geometry") as st:
         body = make_body(edge_length=p.body_edge)
-        cloth = garments.make_garment(body, garment, looseness=looseness, resolution=p.garment_edge)
-        st.record(body_vertices=len(body.vertices), garment_vertices=len(cloth.vertices))
+        cloth = garments.make_garment(body, garment, looseness=looseness, resolution=p.garment_edge, fit=p.fit)
+        gap = garment_gap(body.mesh(), cloth)
+        st.record(body_vertices=len(body.vertices), garment_vertices=len(cloth.vertices),
+                  gap_median_mm=round(1000 * gap["median"], 1))
     with reporter.stage("synth_fabric") as st:
         material, normal_map = fabrics.make_material(fab, cloth, p.texture, seed)
         fibres = fabrics.make_fibres(fab, cloth, material, seed, p.fibre_scale)
-        st.record(fibres=0 if fibres is None else len(fibres.face))
+        surface = None
+        if detail_spec is not None:
+            surface, height = make_detail(cloth, detail_spec, seed)
+            if fibres is not None:
+                fibres.offset = root_offsets(height, cloth, fibres.face, fibres.bary)
+        st.record(fibres=0 if fibres is None else len(fibres.face),
+                  detail_vertices=0 if surface is None else len(surface.offset))
 
     light = rig.capture_light()
     center, radius = framing_sphere(p.framing, body.shape.height, cloth.vertices)
     cameras = rig.dome_cameras(p.views, p.resolution, p.resolution, center=center,
                                distance=1.55 * body.shape.height, subject_radius=radius, seed=seed)
-    gt = GroundTruth(body.mesh(), cloth, material, light, normal_map, fibres)
+    gt = GroundTruth(body.mesh(), cloth, material, light, normal_map, fibres, detail=surface)
     geometry = gt.geometry()
     scene, labels = build_scene(geometry, light)
     empty, _ = build_scene(None, light)
@@ -149,7 +183,10 @@ def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garm
                                     "background_spp": min(p.spp, 16)},
                         counts={"views": len(views), "body_vertices": len(body.vertices),
                                 "garment_vertices": len(cloth.vertices),
-                                "fibres": 0 if fibres is None else len(fibres.face)})
+                                "fibres": 0 if fibres is None else len(fibres.face),
+                                "detail_vertices": 0 if surface is None else len(surface.offset),
+                                "detail_level": 0 if surface is None else surface.level},
+                        garment_gap_m=gap)
         write_ground_truth(out, gt, body, motions, envmaps, manifest)
         write_contact_sheet(out / "contact_sheet.png", views)
     capture.root = str(out)

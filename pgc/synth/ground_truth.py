@@ -9,7 +9,8 @@ Layout::
     material.json         BRDF name and parameters (linear RGB), fabric preset
     base_color.exr        base-colour texture (linear RGB, rows from v = 1 down to v = 0); base_color.png preview
     normal_map.exr        tangent-space weave normal map, encoded (n + 1) / 2 (absent for flat fabrics)
-    fibres.npz            fibres: root face, barycentrics, local directions, length, radius, colour
+    fibres.npz            fibres: root face, barycentrics, local directions, length, radius, colour (root offset)
+    detail.npz            near-field detail embedded in garment.obj: subdivision level, per fine vertex offset
     light.json            the capture light (constant RGB radiance)
     envmaps/<kind>.exr    environment maps for relighting ground truth
     body_model.npz        skinned body: rest vertices, faces, joints, parents, weights, shape
@@ -30,6 +31,7 @@ from pgc.io import images as imgio
 from pgc.io.atomic import atomic_open, write_json
 from pgc.io.mesh import read_mesh, write_mesh
 from pgc.synth.body import BodyModel
+from pgc.synth.detail import DetailSurface
 from pgc.synth.fabrics import Fibres
 from pgc.synth.render import SKIN_ALBEDO, SceneGeometry
 from pgc.synth.skeleton import BodyShape
@@ -50,6 +52,7 @@ class GroundTruth:
     fibres: Fibres | None = None
     skin_albedo: tuple[float, float, float] = SKIN_ALBEDO
     manifest: dict | None = None
+    detail: DetailSurface | None = None
 
     def geometry(self, garment_vertices: np.ndarray | None = None, body_vertices: np.ndarray | None = None
                  ) -> SceneGeometry:
@@ -59,7 +62,7 @@ class GroundTruth:
             self.garment.name)
         bv = self.body.vertices if body_vertices is None else body_vertices
         return SceneGeometry(np.asarray(bv, float), self.body.faces, g, self.material, self.normal_map,
-                             self.fibres, self.skin_albedo)
+                             self.fibres, self.skin_albedo, self.detail)
 
 
 def _save_npz(path: Path, **arrays: np.ndarray) -> None:
@@ -89,8 +92,11 @@ def write_ground_truth(root: str | os.PathLike, gt: GroundTruth, body: BodyModel
         imgio.write_exr(out / "normal_map.exr", gt.normal_map)
     if gt.fibres is not None:
         f = gt.fibres
+        extra = {} if f.offset is None else {"offset": f.offset}
         _save_npz(out / "fibres.npz", face=f.face, bary=f.bary, direction=f.direction, length=np.float64(f.length),
-                  radius=np.float64(f.radius), color=f.color)
+                  radius=np.float64(f.radius), color=f.color, **extra)
+    if gt.detail is not None:
+        _save_npz(out / "detail.npz", level=np.int64(gt.detail.level), offset=gt.detail.offset)
     write_json(out / "light.json", {"radiance": gt.light.radiance.tolist(), "rotation_deg": gt.light.rotation_deg})
     for kind, env in envmaps.items():
         imgio.write_exr(out / "envmaps" / f"{kind}.exr", env)
@@ -117,11 +123,17 @@ def read_ground_truth(root: str | os.PathLike) -> GroundTruth:
     fibres = None
     if (gt_dir / "fibres.npz").is_file():
         z = np.load(gt_dir / "fibres.npz")
-        fibres = Fibres(z["face"], z["bary"], z["direction"], float(z["length"]), float(z["radius"]), z["color"])
+        fibres = Fibres(z["face"], z["bary"], z["direction"], float(z["length"]), float(z["radius"]), z["color"],
+                        z["offset"] if "offset" in z else None)
     light_doc = json.loads((gt_dir / "light.json").read_text())
-    return GroundTruth(read_mesh(gt_dir / "body.obj"), read_mesh(gt_dir / "garment.obj"), material,
+    garment = read_mesh(gt_dir / "garment.obj")
+    detail = None
+    if (gt_dir / "detail.npz").is_file():
+        z = np.load(gt_dir / "detail.npz")
+        detail = DetailSurface(int(z["level"]), z["offset"], garment.faces, garment.uv, garment.face_uv)
+    return GroundTruth(read_mesh(gt_dir / "body.obj"), garment, material,
                        Light(np.asarray(light_doc["radiance"]), rotation_deg=light_doc.get("rotation_deg", 0.0)),
-                       normal_map, fibres, tuple(mat.get("skin_albedo", SKIN_ALBEDO)), manifest)
+                       normal_map, fibres, tuple(mat.get("skin_albedo", SKIN_ALBEDO)), manifest, detail)
 
 
 def read_body_model(root: str | os.PathLike) -> BodyModel:

@@ -121,11 +121,13 @@ def orient_outward(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray,
     return (vertices, faces[:, ::-1].copy()) if signed_volume(vertices, faces) < 0 else (vertices, faces)
 
 
-def remesh(vertices: np.ndarray, faces: np.ndarray, edge_length: float, iterations: int = 6
-           ) -> tuple[np.ndarray, np.ndarray]:
+def remesh(vertices: np.ndarray, faces: np.ndarray, edge_length: float, iterations: int = 6,
+           merge: float = 0.01) -> tuple[np.ndarray, np.ndarray]:
     """Isotropic remeshing to ``edge_length`` metres (pymeshlab), keeping the largest component.
 
-    Open boundaries are kept in place; the result is deterministic for a given input.
+    Open boundaries are kept in place; vertices closer than ``merge`` x ``edge_length`` are merged
+    afterwards (a larger value removes slivers along the boundaries); the result is deterministic for a
+    given input.
     """
     import pymeshlab
 
@@ -134,7 +136,7 @@ def remesh(vertices: np.ndarray, faces: np.ndarray, edge_length: float, iteratio
                                face_matrix=np.asarray(faces, np.int32)))
     ms.meshing_isotropic_explicit_remeshing(iterations=iterations, targetlen=pymeshlab.PureValue(edge_length),
                                             featuredeg=60.0, maxsurfdist=pymeshlab.PureValue(edge_length * 0.2))
-    _drop_degenerate(ms, pymeshlab, 0.01 * edge_length)
+    _drop_degenerate(ms, pymeshlab, merge * edge_length)
     m = ms.current_mesh()
     return largest_component(m.vertex_matrix().astype(np.float64), m.face_matrix().astype(np.int64))
 

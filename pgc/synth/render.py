@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from pgc.synth.detail import DetailSurface
 from pgc.synth.fabrics import Fibres
 from pgc.texture.sample import sample_uv
 from pgc.types import Camera, Light, Material, Mesh
@@ -33,7 +34,7 @@ LABEL_BACKGROUND, LABEL_BODY, LABEL_GARMENT = 0, 1, 2
 @dataclass
 class SceneGeometry:
     """What is in front of the cameras: the body (may have no faces), the garment with its appearance,
-    optional fibres."""
+    optional fibres, optional near-field detail (rendered in place of the garment's own triangles)."""
 
     body_vertices: np.ndarray
     body_faces: np.ndarray
@@ -42,6 +43,14 @@ class SceneGeometry:
     normal_map: np.ndarray | None = None
     fibres: Fibres | None = None
     skin_albedo: tuple[float, float, float] = SKIN_ALBEDO
+    detail: DetailSurface | None = None
+
+    def garment_surface(self) -> Mesh:
+        """The garment surface that is rendered: the detail surface on the garment's vertices, or the
+        garment itself."""
+        if self.detail is None:
+            return self.garment
+        return self.detail.mesh(self.garment.vertices)
 
 
 @lru_cache(maxsize=1)
