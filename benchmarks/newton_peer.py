@@ -50,7 +50,7 @@ def jacobi_eigenvalue(model: ClothModel, h: float) -> float:
 
 
 def newton_settle(model: ClothModel, body: Mesh, frames: int, options: XPBDOptions, fps: float = 30.0
-                  ) -> tuple[np.ndarray, np.ndarray, float, float]:
+                  ) -> tuple[np.ndarray, np.ndarray, float, float, float]:
     """Drape the garment of ``model`` on the static ``body`` for ``frames`` frames with Newton's SolverXPBD.
 
     The same particles, masses, springs (stretch and bending, each with stiffness ``1 / compliance`` and the
@@ -58,10 +58,10 @@ def newton_settle(model: ClothModel, body: Mesh, frames: int, options: XPBDOptio
     particle velocities before each substep, as ours) and cloth-body gap (particle radius = our offset) as
     ours; no particle self-contact (ours has it off by default). The scene is moved so that the garment's
     centre is at the origin (float32 positions resolve ``g h^2`` there) and moved back. Returns the final
-    positions (V, 3) and velocities (V, 3), the seconds per frame after a warm-up (compile) frame, and the
-    RMS XPBD residual ``C + alpha~ lam`` (m) of the springs after the last substep, ours' measure: Newton's
-    multipliers (same sign and ``alpha~ = 1 / (ke h^2)`` convention) are read from its spring kernel's
-    output during that substep.
+    positions (V, 3) and velocities (V, 3), the seconds per frame after a warm-up (compile) frame, the
+    RMS XPBD residual ``C + alpha~ lam`` (m) of the springs after the last substep, ours' measure (Newton's
+    multipliers, same sign and ``alpha~ = 1 / (ke h^2)`` convention, are read from its spring kernel's
+    output during that substep), and the process CPU seconds per frame (all threads).
     """
     os.environ.setdefault("WARP_CACHE_PATH", "/tmp/pgc_warp_cache")
     import warp as wp
@@ -112,7 +112,7 @@ def newton_settle(model: ClothModel, body: Mesh, frames: int, options: XPBDOptio
 
     for _ in range(options.substeps):  # compile
         substep()
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     for _ in range((frames - 1) * options.substeps - 1):
         substep()
     wp.launch = spy  # the last substep: keep its spring multipliers
@@ -121,7 +121,9 @@ def newton_settle(model: ClothModel, body: Mesh, frames: int, options: XPBDOptio
     finally:
         wp.launch = launch
     seconds = (time.perf_counter() - start) / max(frames - 1, 1)
+    cpu_seconds = (time.process_time() - cpu_start) / max(frames - 1, 1)
     x = s0.particle_q.numpy().astype(np.float64)
     c = np.linalg.norm(x[model.ci] - x[model.cj], axis=1) - model.rest
     res = c + model.compliance / dt**2 * lam["springs"].numpy().astype(np.float64)
-    return x + centre, s0.particle_qd.numpy().astype(np.float64), seconds, float(np.sqrt(np.mean(res**2)))
+    return (x + centre, s0.particle_qd.numpy().astype(np.float64), seconds, float(np.sqrt(np.mean(res**2))),
+            cpu_seconds)

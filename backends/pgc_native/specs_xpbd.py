@@ -15,6 +15,8 @@ class NativeXPBDOptions(XPBDOptions):
                          "is the same, byte for byte, for any count. Default 1: a frame has ~20 barriers per "
                          "iteration, which pay only on idle cores (measured on 2 shared cores: 2 threads 1.2-70x "
                          "slower than 1, docs/simulation.md)")
+    simd: bool = Field(True, description="run the AVX-512 build of the kernel where the CPU has it (else the "
+                       "baseline build); both give the same bytes")
 
 
 SPECS = [

@@ -69,7 +69,7 @@ class NativeStepper(Stepper):
         res, c = np.empty(len(self.ci), self.dtype), np.empty(len(self.ci), self.dtype)
         self.fn(len(self.x), len(body0), len(self.ci), len(self.groups), corners.shape[1], len(pairs),
                 int(self.jacobi), int(s.self_collision), s.substeps, s.iterations,
-                ctypes.c_void_p(_ptr(self.scalars)), self.options.threads,
+                ctypes.c_void_p(_ptr(self.scalars)), self.options.threads, int(self.options.simd),
                 *(ctypes.c_void_p(_ptr(a)) for a in (
                     self.x, self.v, self.inv_mass, self.free, self.gravity, self.group_start, self.ci, self.cj,
                     self.rest, self.alpha_t, self.share, self.inc_start, self.inc, body0, body1, n0, n1, corners,

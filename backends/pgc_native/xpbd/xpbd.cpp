@@ -5,6 +5,16 @@
 // Determinism: every parallel loop writes only its own elements (vertices, or the constraints of one graph
 // colour, which share no vertex); the Jacobi sweep and self-collision gather per-vertex sums in a fixed order,
 // so the bytes of the result do not depend on the number of threads.
+//
+// Speed: the working positions are (V, 4) rows (x, y, z, 0), one vector each, so a constraint update is a
+// few vector operations; its three direction divisions and its multiplier division are one vector division
+// (lane by lane the scalar formulas). This file is compiled twice, by including itself: once for the
+// baseline ISA and once for AVX-512 (a `target` pragma), chosen at run time by the CPU. With
+// -ffp-contract=off (no fused multiply-adds) and IEEE division and square root in both, the two builds give
+// the same bytes (tests/test_xpbd_native.py checks it).
+
+#ifndef PGC_XPBD_PASS
+#define PGC_XPBD_PASS
 
 #include <cmath>
 #include <cstdint>
@@ -12,7 +22,67 @@
 
 #include <omp.h>
 
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define PGC_XPBD_AVX512 1
+#pragma GCC push_options
+#pragma GCC target("avx2,fma,avx512f,avx512vl,avx512bw,avx512dq,avx512cd,prefer-vector-width=512")
+namespace xpbd_avx512 {
+#include __FILE__
+}  // namespace xpbd_avx512
+#pragma GCC pop_options
+#endif
+
+namespace xpbd_base {
+#include __FILE__
+}  // namespace xpbd_base
+
 namespace {
+
+bool use_avx512(int32_t simd) {
+#ifdef PGC_XPBD_AVX512
+    return simd && __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
+           __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512dq") &&
+           __builtin_cpu_supports("avx512cd") && __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+#else
+    (void)simd;
+    return false;
+#endif
+}
+
+}  // namespace
+
+// 1 when the AVX-512 build would run for simd = 1 on this CPU, else 0.
+extern "C" int32_t pgc_xpbd_avx512() { return use_avx512(1) ? 1 : 0; }
+
+#ifdef PGC_XPBD_AVX512
+#define PGC_XPBD_DISPATCH(T, ...)                                                                   \
+    if (use_avx512(simd)) xpbd_avx512::advance_frame<T>(__VA_ARGS__);                              \
+    else xpbd_base::advance_frame<T>(__VA_ARGS__);
+#else
+#define PGC_XPBD_DISPATCH(T, ...) xpbd_base::advance_frame<T>(__VA_ARGS__);
+#endif
+
+#define PGC_XPBD_FRAME(SUFFIX, T)                                                                              \
+    extern "C" void pgc_xpbd_frame_##SUFFIX(                                                                   \
+        int64_t nv, int64_t nb, int64_t nc, int64_t ngroups, int64_t K, int64_t npairs, int32_t jacobi,         \
+        int32_t self_collision, int32_t substeps, int32_t iterations, const double* scalars, int32_t threads,   \
+        int32_t simd, T* x, T* v, const T* inv_mass, const T* free_, const T* gravity,                          \
+        const int64_t* group_start, const int32_t* ci, const int32_t* cj, const T* rest, const T* alpha_t,      \
+        const T* share, const int64_t* inc_start, const int32_t* inc, const T* body0, const T* body1,           \
+        const T* normals0, const T* normals1, const int32_t* corners, const int32_t* pairs,                     \
+        const uint8_t* pair_valid, T* res_out, T* c_out) {                                                     \
+        PGC_XPBD_DISPATCH(T, nv, nb, nc, ngroups, K, npairs, jacobi, self_collision, substeps, iterations,     \
+                          scalars, threads, x, v, inv_mass, free_, gravity, group_start, ci, cj, rest, alpha_t, \
+                          share, inc_start, inc, body0, body1, normals0, normals1, corners, pairs, pair_valid,  \
+                          res_out, c_out)                                                                      \
+    }
+
+PGC_XPBD_FRAME(f32, float)
+PGC_XPBD_FRAME(f64, double)
+
+#else  // the kernel, included once per ISA above
+
+#define PGC_INLINE inline __attribute__((always_inline))
 
 constexpr double EPS = 1e-9;  // lengths below this have no direction (kernels.EPS)
 
@@ -21,33 +91,46 @@ struct Vec {
     T x, y, z;
 };
 
+// Row i of an (n, 3) array
+template <typename T, typename I>
+PGC_INLINE Vec<T> load(const T* a, I i) { return {a[3 * i], a[3 * i + 1], a[3 * i + 2]}; }
+template <typename T, typename I>
+PGC_INLINE void store(T* a, I i, Vec<T> v) { a[3 * i] = v.x; a[3 * i + 1] = v.y; a[3 * i + 2] = v.z; }
+// Row i of the working positions, (n, 4) with a zero fourth column: one aligned vector per vertex.
+template <typename T, typename I>
+PGC_INLINE Vec<T> load4(const T* a, I i) { return {a[4 * i], a[4 * i + 1], a[4 * i + 2]}; }
+template <typename T, typename I>
+PGC_INLINE void store4(T* a, I i, Vec<T> v) { a[4 * i] = v.x; a[4 * i + 1] = v.y; a[4 * i + 2] = v.z; }
+// Four lanes of T (GCC vector extension): the sweep works on (x, y, z, pad) rows
 template <typename T>
-inline Vec<T> load(const T* a, int64_t i) { return {a[3 * i], a[3 * i + 1], a[3 * i + 2]}; }
+struct Lanes {
+    typedef T type __attribute__((vector_size(4 * sizeof(T))));
+};
 template <typename T>
-inline void store(T* a, int64_t i, Vec<T> v) { a[3 * i] = v.x; a[3 * i + 1] = v.y; a[3 * i + 2] = v.z; }
+PGC_INLINE Vec<T> operator+(Vec<T> a, Vec<T> b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
 template <typename T>
-inline Vec<T> operator+(Vec<T> a, Vec<T> b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+PGC_INLINE Vec<T> operator-(Vec<T> a, Vec<T> b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
 template <typename T>
-inline Vec<T> operator-(Vec<T> a, Vec<T> b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+PGC_INLINE Vec<T> operator*(T s, Vec<T> a) { return {s * a.x, s * a.y, s * a.z}; }
 template <typename T>
-inline Vec<T> operator*(T s, Vec<T> a) { return {s * a.x, s * a.y, s * a.z}; }
+PGC_INLINE Vec<T> select(bool m, Vec<T> a, Vec<T> b) { return {m ? a.x : b.x, m ? a.y : b.y, m ? a.z : b.z}; }
 template <typename T>
-inline T dot(Vec<T> a, Vec<T> b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+PGC_INLINE T dot(Vec<T> a, Vec<T> b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 template <typename T>
-inline T norm(Vec<T> a) { return std::sqrt(dot(a, a)); }
+PGC_INLINE T norm(Vec<T> a) { return std::sqrt(dot(a, a)); }
 template <typename T>
-inline Vec<T> unit(Vec<T> a) {
+PGC_INLINE Vec<T> unit(Vec<T> a) {
     T n = norm(a);
     T d = n > T(EPS) ? n : T(1);
     return {a.x / d, a.y / d, a.z / d};
 }
 template <typename T>
-inline T guarded_div(T x, T y) { return std::fabs(y) > T(1e-30) ? x / y : T(0); }
+PGC_INLINE T guarded_div(T x, T y) { return std::fabs(y) > T(1e-30) ? x / y : T(0); }
 
 // Barycentrics (u, v, w) of the point of triangle abc closest to p (Ericson's region tests, first match
 // returns). The same formulas and priorities as kernels.closest_barycentric, whose later overrides win.
 template <typename T>
-inline void closest_barycentric(Vec<T> p, Vec<T> a, Vec<T> b, Vec<T> c, T& u, T& v, T& w) {
+PGC_INLINE void closest_barycentric(Vec<T> p, Vec<T> a, Vec<T> b, Vec<T> c, T& u, T& v, T& w) {
     Vec<T> ab = b - a, ac = c - a, ap = p - a;
     T d1 = dot(ab, ap), d2 = dot(ac, ap);
     v = 0; w = 0;
@@ -83,7 +166,7 @@ struct Contact {
 };
 
 template <typename T>
-inline Contact<T> closest_contact(Vec<T> p, const T* body, const T* normals, const int32_t* corners, int K) {
+PGC_INLINE Contact<T> closest_contact(Vec<T> p, const T* body, const T* normals, const int32_t* corners, int K) {
     Contact<T> best{};
     T best_d2 = T(0);
     for (int k = 0; k < K; ++k) {
@@ -112,115 +195,125 @@ struct Scalars {
     double h, damping, offset, friction, contact_radius, max_step, thickness;
 };
 
-// A constraint's data packed together (one cache line holds several): built once per frame call.
-template <typename T>
-struct Packed {
-    int32_t i, j;
-    T rest, alpha_t, share;
-};
-
-// One XPBD update of constraint c (kernels.project_distance): applied to p, or, for a Jacobi sweep, the
-// correction dlam * n stored in corr for the per-vertex gather. Coloured groups have share 1 (skipped:
-// x * 1 == x).
-template <typename T, bool Jacobi>
-inline void project(T* p, const T* inv_mass, int64_t c, const Packed<T>& k, T* lam, T* corr) {
-    Vec<T> d = load(p, k.i) - load(p, k.j);
-    T length = norm(d);
-    T wi = inv_mass[k.i], wj = inv_mass[k.j], at = k.alpha_t;
-    T denom = (wi + wj) + at;
-    bool good = (length > T(EPS)) && (denom > 0);
-    T dlam = good ? ((k.rest - length) - at * lam[c]) / denom : T(0);
-    if (Jacobi) dlam *= k.share;
-    lam[c] += dlam;
-    T l = good ? length : T(1);
-    Vec<T> n{d.x / l, d.y / l, d.z / l};
-    Vec<T> cr = dlam * n;
-    if (Jacobi) {
-        store(corr, c, cr);
-    } else {
-        store(p, k.i, load(p, k.i) + wi * cr);
-        store(p, k.j, load(p, k.j) - wj * cr);
-    }
-}
-
 template <typename T>
 void advance_frame(int64_t nv, int64_t nb, int64_t nc, int64_t ngroups, int64_t K, int64_t npairs, int jacobi,
-                   int self_collision, int substeps, int iterations, const Scalars& sc, int threads, T* x, T* vel,
-                   const T* inv_mass, const T* free_, const T* gravity, const int64_t* group_start,
+                   int self_collision, int substeps, int iterations, const double* scalars, int threads, T* x,
+                   T* vel, const T* inv_mass, const T* free_, const T* gravity, const int64_t* group_start,
                    const int32_t* ci, const int32_t* cj, const T* rest, const T* alpha_t, const T* share,
                    const int64_t* inc_start, const int32_t* inc, const T* body0, const T* body1,
                    const T* normals0, const T* normals1, const int32_t* corners, const int32_t* pairs,
                    const uint8_t* pair_valid, T* res_out, T* c_out) {
+    const Scalars sc{scalars[0], scalars[1], scalars[2], scalars[3], scalars[4], scalars[5], scalars[6]};
     const T h = T(sc.h), damping = T(sc.damping), offset = T(sc.offset), friction = T(sc.friction);
     const T radius = T(sc.contact_radius), max_step = T(sc.max_step), thickness = T(sc.thickness);
-    const Vec<T> g = load(gravity, 0);
-    std::vector<T> p(3 * nv), body_start(3 * nb), body(3 * nb), normals(3 * nb), lam(nc), corr(jacobi ? 3 * nc : 0);
-    std::vector<T> cpoint(3 * nv), cnormal(3 * nv), pushed(nv);
-    std::vector<uint8_t> active(nv);
-    std::vector<Packed<T>> packed(nc);
-    for (int64_t c = 0; c < nc; ++c) packed[c] = {ci[c], cj[c], rest[c], alpha_t[c], share[c]};
+    const T gx = gravity[0], gy = gravity[1], gz = gravity[2];
+    std::vector<T> pbuf(4 * nv + 4), body_start_buf(3 * nb), body_buf(3 * nb), normals_buf(3 * nb), lam_buf(nc);
+    std::vector<T> corr_buf(jacobi ? 3 * nc : 0), cpoint_buf(3 * nv), cnormal_buf(3 * nv), pushed_buf(nv);
+    std::vector<uint8_t> active_buf(nv);
     std::vector<T> pcorr(self_collision ? 3 * npairs : 0), pmag(self_collision ? npairs : 0);
     std::vector<T> pcount(self_collision ? nv : 0);
+    // working positions (V, 4), rows aligned to the vector type (4 T; pbuf has one spare row)
+    T* __restrict p = pbuf.data() + (4 - (reinterpret_cast<uintptr_t>(pbuf.data()) / sizeof(T)) % 4) % 4;
+    T* __restrict body_start = body_start_buf.data();
+    T* __restrict body = body_buf.data();
+    T* __restrict normals = normals_buf.data();
+    T* __restrict lam = lam_buf.data();
+    T* __restrict corr = corr_buf.data();
+    T* __restrict cpoint = cpoint_buf.data();
+    T* __restrict cnormal = cnormal_buf.data();
+    T* __restrict pushed = pushed_buf.data();
+    uint8_t* __restrict active = active_buf.data();
     const int nthreads = threads > 0 ? threads : omp_get_max_threads();
+    using V = typename Lanes<T>::type;
 
 #pragma omp parallel num_threads(nthreads)
     {
         for (int step = 0; step < substeps; ++step) {
             const T t0 = T(step) / T(substeps), t1 = T(step + 1) / T(substeps);
-#pragma omp for schedule(static)
+#pragma omp for simd schedule(static)
             for (int64_t b = 0; b < nb; ++b) {
                 Vec<T> b0 = load(body0, b), b1 = load(body1, b), n0 = load(normals0, b), n1 = load(normals1, b);
-                store(body_start.data(), b, b0 + t0 * (b1 - b0));
-                store(body.data(), b, b0 + t1 * (b1 - b0));
-                store(normals.data(), b, unit(n0 + t1 * (n1 - n0)));
+                store(body_start, b, b0 + t0 * (b1 - b0));
+                store(body, b, b0 + t1 * (b1 - b0));
+                store(normals, b, unit(n0 + t1 * (n1 - n0)));
             }
             // damping, gravity, clamped prediction, contact planes (kernels.advance_frame, before the sweeps)
 #pragma omp for schedule(static)
             for (int64_t i = 0; i < nv; ++i) {
-                Vec<T> v = damping * load(vel, i) + (h * free_[i]) * g;
+                const T hf = h * free_[i];
+                Vec<T> v = damping * load(vel, i) + Vec<T>{hf * gx, hf * gy, hf * gz};
                 store(vel, i, v);
                 Vec<T> st = h * v;
                 T length = norm(st);
                 Vec<T> pi = load(x, i) + (max_step / (length > max_step ? length : max_step)) * st;
-                store(p.data(), i, pi);
-                Contact<T> con = closest_contact(pi, body.data(), normals.data(), corners + 3 * K * i, (int)K);
+                store4(p, i, pi);
+                Contact<T> con = closest_contact(pi, body, normals, corners + 3 * K * i, (int)K);
                 bool act = (free_[i] > 0) && (norm(pi - con.point) < radius);
                 active[i] = act;
                 T depth = act ? offset - con.signed_dist : T(0);
                 pushed[i] = depth > 0 ? depth : T(0);
-                store(cpoint.data(), i, con.point);
-                store(cnormal.data(), i, con.normal);
+                store(cpoint, i, con.point);
+                store(cnormal, i, con.normal);
             }
-#pragma omp for schedule(static)
+#pragma omp for simd schedule(static)
             for (int64_t c = 0; c < nc; ++c) lam[c] = 0;
             for (int it = 0; it < iterations; ++it) {
                 if (jacobi) {
 #pragma omp for schedule(static)
-                    for (int64_t c = 0; c < nc; ++c)
-                        project<T, true>(p.data(), inv_mass, c, packed[c], lam.data(), corr.data());
+                    for (int64_t c = 0; c < nc; ++c) {  // every correction stored, gathered per vertex below
+                        const int32_t i = ci[c], j = cj[c];
+                        Vec<T> d = load4(p, i) - load4(p, j);
+                        T length = norm(d), at = alpha_t[c], denom = (inv_mass[i] + inv_mass[j]) + at;
+                        bool good = (length > T(EPS)) & (denom > 0);
+                        T dlam = good ? ((rest[c] - length) - at * lam[c]) / (good ? denom : T(1)) : T(0);
+                        dlam *= share[c];
+                        lam[c] += dlam;
+                        T l = good ? length : T(1);
+                        store(corr, c, dlam * Vec<T>{d.x / l, d.y / l, d.z / l});
+                    }
 #pragma omp for schedule(static)
                     for (int64_t i = 0; i < nv; ++i) {  // fixed-order gather: i-side then j-side, by constraint
-                        Vec<T> pi = load(p.data(), i);
+                        Vec<T> pi = load4(p, i);
                         for (int64_t k = inc_start[i]; k < inc_start[i + 1]; ++k) {
                             const int64_t c = inc[k] >> 1;
-                            Vec<T> cr = load(corr.data(), c);
+                            Vec<T> cr = load(corr, c);
                             pi = (inc[k] & 1) ? pi - inv_mass[i] * cr : pi + inv_mass[i] * cr;
                         }
-                        store(p.data(), i, pi);
+                        store4(p, i, pi);
                     }
                 } else {
                     for (int64_t gi = 0; gi < ngroups; ++gi) {  // one graph colour: no shared vertex
 #pragma omp for schedule(static)
-                        for (int64_t c = group_start[gi]; c < group_start[gi + 1]; ++c)
-                            project<T, false>(p.data(), inv_mass, c, packed[c], lam.data(), nullptr);
+                        for (int64_t c = group_start[gi]; c < group_start[gi + 1]; ++c) {
+                            // kernels.project_distance with share 1, applied in place. One vertex row is one
+                            // vector (x, y, z, pad): the three divisions of the direction and the one of the
+                            // multiplier update are one vector division, lane by lane the scalar formulas
+                            const int32_t i = ci[c], j = cj[c];
+                            V* pi = reinterpret_cast<V*>(p + 4 * i);
+                            V* pj = reinterpret_cast<V*>(p + 4 * j);
+                            const V a = *pi, b = *pj;
+                            const V d = a - b;
+                            const V dd = d * d;
+                            const T length = std::sqrt(dd[0] + dd[1] + dd[2]);
+                            const T wi = inv_mass[i], wj = inv_mass[j], at = alpha_t[c];
+                            const T denom = (wi + wj) + at;
+                            const bool good = (length > T(EPS)) & (denom > 0);
+                            const T l = good ? length : T(1);
+                            const V q = V{d[0], d[1], d[2], (rest[c] - length) - at * lam[c]} /
+                                        V{l, l, l, good ? denom : T(1)};
+                            const T dlam = good ? q[3] : T(0);
+                            lam[c] += dlam;
+                            const V cr = dlam * V{q[0], q[1], q[2], T(0)};
+                            *pi = a + wi * cr;
+                            *pj = b - wj * cr;
+                        }
                     }
                 }
-#pragma omp for schedule(static)
+#pragma omp for simd schedule(static)
                 for (int64_t i = 0; i < nv; ++i) {  // contact half-spaces (kernels.push_out)
-                    if (!active[i]) continue;
-                    Vec<T> pi = load(p.data(), i), n = load(cnormal.data(), i);
-                    T depth = offset - dot(pi - load(cpoint.data(), i), n);
-                    if (depth > 0) store(p.data(), i, pi + depth * n);
+                    Vec<T> pi = load4(p, i), n = load(cnormal, i);
+                    T depth = offset - dot(pi - load(cpoint, i), n);
+                    store4(p, i, select(active[i] & (depth > 0), pi + depth * n, pi));
                 }
             }
             if (self_collision) {
@@ -229,7 +322,7 @@ void advance_frame(int64_t nv, int64_t nb, int64_t nc, int64_t ngroups, int64_t 
                     for (int64_t i = 0; i < nv; ++i) pcount[i] = 0;
                     for (int64_t k = 0; k < npairs; ++k) {
                         const int64_t a = pairs[2 * k], b = pairs[2 * k + 1];
-                        Vec<T> d = load(p.data(), a) - load(p.data(), b);
+                        Vec<T> d = load4(p, a) - load4(p, b);
                         T length = norm(d), wa = inv_mass[a], wb = inv_mass[b];
                         bool on = pair_valid[k] && (length < thickness) && (length > T(EPS)) && (wa + wb > 0);
                         T l = on ? length : T(1);
@@ -242,29 +335,29 @@ void advance_frame(int64_t nv, int64_t nb, int64_t nc, int64_t ngroups, int64_t 
                         const int64_t a = pairs[2 * k];
                         T sa = T(1) / (pcount[a] > 0 ? pcount[a] : T(1));
                         Vec<T> cr = pmag[k] * load(pcorr.data(), k);
-                        store(p.data(), a, load(p.data(), a) + (inv_mass[a] * sa) * cr);
+                        store4(p, a, load4(p, a) + (inv_mass[a] * sa) * cr);
                     }
                     for (int64_t k = 0; k < npairs; ++k) {
                         const int64_t b = pairs[2 * k + 1];
                         T sb = T(1) / (pcount[b] > 0 ? pcount[b] : T(1));
                         Vec<T> cr = pmag[k] * load(pcorr.data(), k);
-                        store(p.data(), b, load(p.data(), b) - (inv_mass[b] * sb) * cr);
+                        store4(p, b, load4(p, b) - (inv_mass[b] * sb) * cr);
                     }
                 }
             }
             // body collision on fresh closest points with friction, velocity update (kernels.collide_body)
 #pragma omp for schedule(static)
             for (int64_t i = 0; i < nv; ++i) {
-                Vec<T> pi = load(p.data(), i), xs = load(x, i);
-                Contact<T> con = closest_contact(pi, body.data(), normals.data(), corners + 3 * K * i, (int)K);
+                Vec<T> pi = load4(p, i), xs = load(x, i);
+                Contact<T> con = closest_contact(pi, body, normals, corners + 3 * K * i, (int)K);
                 bool act = (free_[i] > 0) && (norm(pi - con.point) < radius);
                 T depth = act ? offset - dot(pi - con.point, con.normal) : T(0);
                 depth = depth > 0 ? depth : T(0);
                 pi = pi + depth * con.normal;
                 depth = depth + pushed[i];
-                Vec<T> start = (con.bary[0] * load(body_start.data(), con.tri[0]) +
-                                con.bary[1] * load(body_start.data(), con.tri[1])) +
-                               con.bary[2] * load(body_start.data(), con.tri[2]);
+                Vec<T> start = (con.bary[0] * load(body_start, con.tri[0]) +
+                                con.bary[1] * load(body_start, con.tri[1])) +
+                               con.bary[2] * load(body_start, con.tri[2]);
                 Vec<T> rel = (pi - xs) - (con.point - start);
                 Vec<T> tang = rel - dot(rel, con.normal) * con.normal;
                 T tl = norm(tang);
@@ -280,7 +373,7 @@ void advance_frame(int64_t nv, int64_t nb, int64_t nc, int64_t ngroups, int64_t 
             }
         }
         // final residuals C + alpha_t lam and values C (kernels.constraint_residual)
-#pragma omp for schedule(static)
+#pragma omp for simd schedule(static)
         for (int64_t c = 0; c < nc; ++c) {
             T cv = norm(load(x, ci[c]) - load(x, cj[c])) - rest[c];
             c_out[c] = cv;
@@ -289,23 +382,6 @@ void advance_frame(int64_t nv, int64_t nb, int64_t nc, int64_t ngroups, int64_t 
     }
 }
 
-}  // namespace
+#undef PGC_INLINE
 
-#define PGC_XPBD_FRAME(SUFFIX, T)                                                                              \
-    extern "C" void pgc_xpbd_frame_##SUFFIX(                                                                   \
-        int64_t nv, int64_t nb, int64_t nc, int64_t ngroups, int64_t K, int64_t npairs, int32_t jacobi,         \
-        int32_t self_collision, int32_t substeps, int32_t iterations, const double* scalars, int32_t threads,   \
-        T* x, T* v, const T* inv_mass, const T* free_, const T* gravity, const int64_t* group_start,           \
-        const int32_t* ci, const int32_t* cj, const T* rest, const T* alpha_t, const T* share,                 \
-        const int64_t* inc_start, const int32_t* inc, const T* body0, const T* body1, const T* normals0,         \
-        const T* normals1, const int32_t* corners, const int32_t* pairs, const uint8_t* pair_valid, T* res_out,  \
-        T* c_out) {                                                                                            \
-        Scalars sc{scalars[0], scalars[1], scalars[2], scalars[3], scalars[4], scalars[5], scalars[6]};         \
-        advance_frame<T>(nv, nb, nc, ngroups, K, npairs, jacobi, self_collision, substeps, iterations, sc,      \
-                         threads, x, v, inv_mass, free_, gravity, group_start, ci, cj, rest, alpha_t, share,    \
-                         inc_start, inc, body0, body1, normals0, normals1, corners, pairs, pair_valid, res_out, \
-                         c_out);                                                                               \
-    }
-
-PGC_XPBD_FRAME(f32, float)
-PGC_XPBD_FRAME(f64, double)
+#endif  // PGC_XPBD_PASS
