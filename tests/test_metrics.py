@@ -163,6 +163,20 @@ def test_fsim_flat_images_are_finite():
     assert np.isfinite(metric("fsim")(flat * 0.5, flat))
 
 
+def test_fsim_filter_bank_is_built_once_per_size_and_read_only():
+    """The cached log-Gabor bank gives the same value as a freshly built one, whatever sizes came before."""
+    from pgc.metrics.fsim import _bank
+
+    a, b = textured(48, 56, seed=1), textured(48, 56, seed=2)
+    _bank.cache_clear()
+    fresh = metric("fsim")(a, b)
+    metric("fsim")(textured(40, 64, seed=3), textured(40, 64, seed=4))  # another size in between
+    assert metric("fsim")(a, b) == fresh
+    assert _bank.cache_info().misses == 2
+    with pytest.raises(ValueError):
+        _bank(48, 56).filters[0][0][0, 0] = 1.0
+
+
 def _bench():
     import importlib.util
     from pathlib import Path

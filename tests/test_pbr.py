@@ -3,6 +3,8 @@ torch approximation against the path tracer (constant and environment light), an
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -156,3 +158,29 @@ def test_an_occluder_hides_and_shadows_but_is_not_rendered(mitsuba_renderer, tor
         assert ring.sum() > 10 and far.sum() > 10
         assert out.color[ring].mean() < 0.97 * plain.color[ring].mean()  # shadowed around the occluder
         np.testing.assert_allclose(out.color[far].mean(0), plain.color[far].mean(0), rtol=0.05)
+
+
+def test_mitsuba_reuses_its_scene_only_for_equal_inputs() -> None:
+    """Rendering the same inputs from another camera reuses the scene and gives the images of a fresh
+    renderer; a changed input (an array edited in place included) builds a new scene."""
+    reg = default_registry()
+    reused = reg.create("pbr_renderer", "mitsuba", {"spp": 8})
+    sphere = uv_sphere(n_lat=12, n_lon=24)
+    mat = Material("pgc-sheen", {"base_color": [0.5, 0.4, 0.3], **SHEEN})
+    light = Light(np.ones(3))
+    cams = ring_cameras(2, size=24, radius=2.0)
+    first = reused.render(sphere, mat, light, cams[0])
+    scene = reused._last_scene[1]
+    second = reused.render(replace(sphere, vertices=sphere.vertices.copy()), mat, light, cams[1])
+    assert reused._last_scene[1] is scene
+    for cam, out in zip(cams, (first, second)):
+        fresh = reg.create("pbr_renderer", "mitsuba", {"spp": 8}).render(sphere, mat, light, cam)
+        assert np.array_equal(out.color, fresh.color) and np.array_equal(out.alpha, fresh.alpha)
+    moved = sphere.vertices.copy()
+    reused.render(replace(sphere, vertices=moved), mat, light, cams[0])
+    assert reused._last_scene[1] is scene
+    moved *= 0.5  # in place: the renderer must notice
+    small = reused.render(replace(sphere, vertices=moved), mat, light, cams[0])
+    assert reused._last_scene[1] is not scene and small.alpha.sum() < 0.5 * first.alpha.sum()
+    brighter = reused.render(sphere, mat, Light(2 * np.ones(3)), cams[0])
+    assert brighter.color.sum() > 1.5 * first.color.sum()

@@ -11,6 +11,8 @@ of at most ``max_samples_per_pass`` rays whose results are averaged (same estima
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 from typing import Any
 
@@ -26,18 +28,53 @@ from pgc_mitsuba.sensors import pinhole_sensor, ray_sensor
 from pgc_mitsuba.specs_pbr import MitsubaPBROptions
 
 
+def scene_fingerprint(mesh: Mesh, material: Material, light: Light, occluder: Mesh | None, max_depth: int) -> bytes:
+    """A digest of everything :func:`pgc_mitsuba.scene.scene_dict` reads (array contents included, so arrays
+    changed in place give another digest)."""
+    h = hashlib.blake2b(digest_size=20)
+
+    def add(value: Any) -> None:
+        if isinstance(value, np.ndarray):
+            h.update(f"{value.dtype.str}{value.shape}".encode())
+            h.update(np.ascontiguousarray(value).data)
+        else:
+            h.update(repr(value).encode())
+
+    for m in (mesh, occluder):
+        for value in (None,) if m is None else (m.vertices, m.faces, m.uv, m.face_uv):
+            add(None if value is None else np.asarray(value))
+    add(material.brdf)
+    add(json.dumps(material.params, sort_keys=True, default=lambda x: np.asarray(x).tolist()))
+    add(None if material.base_color is None else np.asarray(material.base_color))
+    add(np.asarray(light.radiance, np.float64))
+    add(None if light.envmap is None else np.asarray(light.envmap))
+    add((float(light.rotation_deg), int(max_depth)))
+    return h.digest()
+
+
 class MitsubaPBRRenderer(PBRRenderer):
     """Path-traced PBR rendering with Mitsuba 3 (see module docstring)."""
 
     Options = MitsubaPBROptions
     options: MitsubaPBROptions
 
+    _last_scene: tuple[bytes, Any] | None = None
+
     def _scene(self, mesh: Mesh, material: Material, light: Light, occluder: Mesh | None = None,
                max_depth: int | None = None) -> Any:
+        """The Mitsuba scene of these inputs. The last scene is kept and reused while the inputs are equal (a
+        garment state is rendered from several cameras, in screen and texture space): building it costs about
+        a fifth of a 64-spp render; the images are the same either way."""
         mi = mitsuba()
-        integrator = {"type": "path", "max_depth": max_depth or self.options.max_depth, "hide_emitters": True}
-        return mi.load_dict(scene_dict(mesh, material, light, integrator, occluder, self.options.occluder_albedo,
-                                       self.options.smooth_normals))
+        depth = max_depth or self.options.max_depth
+        key = scene_fingerprint(mesh, material, light, occluder, depth)
+        if self._last_scene is not None and self._last_scene[0] == key:
+            return self._last_scene[1]
+        integrator = {"type": "path", "max_depth": depth, "hide_emitters": True}
+        scene = mi.load_dict(scene_dict(mesh, material, light, integrator, occluder, self.options.occluder_albedo,
+                                        self.options.smooth_normals))
+        self._last_scene = (key, scene)
+        return scene
 
     def _passes(self, rays: int, spp: int) -> list[int]:
         """Split ``spp`` samples of ``rays`` rays into passes of at most max_samples_per_pass rays."""

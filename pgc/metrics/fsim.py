@@ -11,6 +11,9 @@ with PC_m = max(PC_1, PC_2). A mask (resampled like the images) weights both sum
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from functools import lru_cache
+
 import numpy as np
 
 from pgc.metrics.common import display_255, require_nonempty
@@ -49,8 +52,23 @@ def _centred_grid(n: int) -> np.ndarray:
     return np.arange(-n / 2, n / 2) / n
 
 
-def _filters(rows: int, cols: int) -> list[list[np.ndarray]]:
-    """Log-Gabor filters [orientation][scale] in the (unshifted) FFT layout."""
+@dataclass(frozen=True)
+class _Bank:
+    """The log-Gabor filters of one image size and the noise model's constants that depend on them only."""
+
+    filters: list[list[np.ndarray]]
+    """[orientation][scale], in the (unshifted) FFT layout."""
+    smallest_energy: list[float]
+    """Per orientation: sum of the smallest-scale filter's squared values."""
+    sum_an2: list[float]
+    """Per orientation: sum over scales of the squared spatial filters."""
+    sum_aiaj: list[float]
+    """Per orientation: sum over pairs of scales of the products of the spatial filters."""
+
+
+@lru_cache(maxsize=8)
+def _bank(rows: int, cols: int) -> _Bank:
+    """The filter bank of a ``rows`` x ``cols`` image (built once per size; the arrays are read-only)."""
     x, y = np.meshgrid(_centred_grid(cols), _centred_grid(rows))
     radius = np.fft.ifftshift(np.sqrt(x ** 2 + y ** 2))
     theta = np.fft.ifftshift(np.arctan2(-y, x))
@@ -64,14 +82,21 @@ def _filters(rows: int, cols: int) -> list[list[np.ndarray]]:
         radial.append(log_gabor)
     theta_sigma = np.pi / ORIENTATIONS / D_THETA_ON_SIGMA
     sin_t, cos_t = np.sin(theta), np.cos(theta)
-    out = []
+    filters, smallest, an2, aiaj = [], [], [], []
     for o in range(ORIENTATIONS):
         angle = o * np.pi / ORIENTATIONS
         d_theta = np.abs(np.arctan2(sin_t * np.cos(angle) - cos_t * np.sin(angle),
                                     cos_t * np.cos(angle) + sin_t * np.sin(angle)))
         spread = np.exp(-d_theta ** 2 / (2 * theta_sigma ** 2))
-        out.append([r * spread for r in radial])
-    return out
+        bank = [r * spread for r in radial]
+        spatial = [np.real(np.fft.ifft2(filt)) * np.sqrt(rows * cols) for filt in bank]
+        for filt in bank:
+            filt.flags.writeable = False
+        filters.append(bank)
+        smallest.append(float(np.sum(bank[0] ** 2)))
+        an2.append(sum(np.sum(s ** 2) for s in spatial))
+        aiaj.append(sum(np.sum(spatial[i] * spatial[j]) for i in range(SCALES) for j in range(i + 1, SCALES)))
+    return _Bank(filters, smallest, an2, aiaj)
 
 
 def phase_congruency(image: np.ndarray) -> np.ndarray:
@@ -80,9 +105,9 @@ def phase_congruency(image: np.ndarray) -> np.ndarray:
     spectrum = np.fft.fft2(image)
     energy_all = np.zeros((rows, cols))
     amplitude_all = np.zeros((rows, cols))
-    for bank in _filters(rows, cols):
-        responses = [np.fft.ifft2(spectrum * filt) for filt in bank]
-        spatial = [np.real(np.fft.ifft2(filt)) * np.sqrt(rows * cols) for filt in bank]
+    bank = _bank(rows, cols)
+    for o, filters in enumerate(bank.filters):
+        responses = [np.fft.ifft2(spectrum * filt) for filt in filters]
         sum_e = sum(r.real for r in responses)
         sum_o = sum(r.imag for r in responses)
         amplitude = sum(np.abs(r) for r in responses)
@@ -91,10 +116,8 @@ def phase_congruency(image: np.ndarray) -> np.ndarray:
         energy = sum(r.real * mean_e + r.imag * mean_o - np.abs(r.real * mean_o - r.imag * mean_e)
                      for r in responses)
         # noise: the median squared response at the smallest scale, a Rayleigh model, rescaled by 1 / 1.7
-        noise_power = -np.median(np.abs(responses[0]) ** 2) / np.log(0.5) / np.sum(bank[0] ** 2)
-        sum_an2 = sum(np.sum(s ** 2) for s in spatial)
-        sum_aiaj = sum(np.sum(spatial[i] * spatial[j]) for i in range(SCALES) for j in range(i + 1, SCALES))
-        tau = np.sqrt((2 * noise_power * sum_an2 + 4 * noise_power * sum_aiaj) / 2)
+        noise_power = -np.median(np.abs(responses[0]) ** 2) / np.log(0.5) / bank.smallest_energy[o]
+        tau = np.sqrt((2 * noise_power * bank.sum_an2[o] + 4 * noise_power * bank.sum_aiaj[o]) / 2)
         threshold = (tau * np.sqrt(np.pi / 2) + NOISE_K * np.sqrt((2 - np.pi / 2) * tau ** 2)) / 1.7
         energy_all += np.maximum(energy - threshold, 0.0)
         amplitude_all += amplitude

@@ -124,7 +124,8 @@ def evaluate_run(run_dir: str | Path, gt: str | Path, cfg: RunConfig, reporter: 
     per_frame: dict[str, list[dict[str, float]]] = {k: [] for k in VARIANTS}
     with reporter.stage("eval", total=len(frames)) as st:
         for i, t in enumerate(frames):
-            pred = np.load(run_dir / "render" / f"frame_{t:04d}.npz")
+            with np.load(run_dir / "render" / f"frame_{t:04d}.npz") as z:  # read each array once, not per metric
+                pred = {k: z[k] for k in z.files}
             target, coverage = targets[i]
             if target.shape != pred["hybrid"].shape:
                 raise PGCDataError(f"frame {t}: ground truth {target.shape} and render {pred['hybrid'].shape} "

@@ -12,6 +12,7 @@ from pgc.metrics.weights import lpips_weights_path
 from pgc.roles.metric import Metric
 from pgc_torch.lpips.network import MIN_SIZE, LPIPSNetwork
 from pgc_torch.specs_lpips import LPIPSOptions
+from pgc_torch.threads import torch_threads
 
 
 @lru_cache(maxsize=2)
@@ -22,7 +23,9 @@ def load_network(net: str) -> LPIPSNetwork:
 
 class LPIPSMetric(Metric):
     """LPIPS v0.1 on sRGB-encoded values. With a mask: the images are cropped to the mask's bounding box (grown
-    to the backbone's minimum size) and each layer's distance map is averaged with the mask as weights."""
+    to the backbone's minimum size) and each layer's distance map is averaged with the mask as weights.
+    Runs on one torch thread: the images are small, and OpenMP barriers between contended threads cost several
+    times the convolutions (the tiny demo's LPIPS values came out bit-identical)."""
 
     Options = LPIPSOptions
     higher_is_better = False
@@ -32,4 +35,5 @@ class LPIPSMetric(Metric):
         if mask is not None:
             rows, cols = mask_bbox(mask, MIN_SIZE[self.options.net])
             pred, target, mask = pred[rows, cols], target[rows, cols], np.asarray(mask)[rows, cols]
-        return network.distance(linear_to_srgb(pred), linear_to_srgb(target), mask)
+        with torch_threads(1):
+            return network.distance(linear_to_srgb(pred), linear_to_srgb(target), mask)
