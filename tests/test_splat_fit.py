@@ -15,7 +15,7 @@ torch = pytest.importorskip("torch")
 
 from pgc.splats.fitplan import crop_view, focus_on_garment, initial_count  # noqa: E402
 from pgc.splats.init import colors_from_views, sample_on_mesh  # noqa: E402
-from pgc.splats.fit import heldout_psnr  # noqa: E402
+from pgc.splats.fit import views_psnr  # noqa: E402
 from pgc_torch.splat.renderer import TorchSplatRenderer  # noqa: E402
 
 FAST = {"iterations": 40, "gaussians_per_pixel": 0.5, "holdout_every": 4, "log_every": 10}
@@ -105,7 +105,7 @@ def test_heldout_psnr_of_the_ground_truth_layout_is_high(scene):
         fv = FitView.of(v, 0.03)
         fv = replace(fv, image=fv.background.copy())
         views.append(_Prepared(fv, backend.prepare(fv)))
-    assert heldout_psnr(backend, views, 0) > 60
+    assert views_psnr(backend, views, 0) > 60
 
 
 def test_backfacing_faces_are_those_no_camera_sees_from_the_front():

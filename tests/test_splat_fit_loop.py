@@ -83,6 +83,25 @@ def test_the_fit_stops_on_heldout_convergence_and_repeats_bit_for_bit(scene):
         assert getattr(first.gaussians, name).tobytes() == getattr(second.gaussians, name).tobytes(), name
 
 
+def test_a_capture_with_no_heldout_view_stops_on_the_training_psnr_plateau(scene):
+    """Too few views to hold one out: the convergence test runs on the training views' PSNR, so the fit still
+    stops before its cap, and the curve names what it measured."""
+    pytest.importorskip("torch")
+    from pgc_torch.splat.renderer import TorchSplatRenderer
+
+    capture, mesh = scene
+    settings = dict(FAST, holdout_every=len(capture.views) + 1, iterations=2000, converge_every=10,
+                    converge_patience=2, converge_db=0.5, converge_after=0.0, select_count=False, select_sh=False)
+    fit = TorchSplatRenderer({"threads": 1}).fit(capture, mesh, settings)
+    f = fit.figures
+    assert f["views_heldout"] == 0 and not fit.heldout_views
+    assert f["stopped"] == "converged" and f["iterations"] < 2000
+    psnrs = [p["psnr_train"] for p in f["time_to_psnr"]]
+    assert all("psnr_heldout" not in p for p in f["time_to_psnr"])
+    assert len(psnrs) == f["iterations"] // 10 and converged(psnrs, FitSplatsSettings(**settings))
+    assert not converged(psnrs[:-1], FitSplatsSettings(**settings))
+
+
 def _state(opacity: np.ndarray, rng: np.random.Generator) -> dict[str, np.ndarray]:
     n = len(opacity)
     logits = np.log(opacity) - np.log1p(-opacity)

@@ -12,8 +12,10 @@ The loop (the paper's optimisation, with the choices this project adds):
   ``iterations``;
 - every ``converge_every`` steps the held-out PSNR is measured (the time-to-PSNR curve); once past
   ``converge_after`` of the schedule, the fit stops when ``converge_patience`` evaluations in a row raised the
-  best held-out PSNR by less than ``converge_db``, else after ``iterations`` steps. Nothing depends on the clock:
-  the same inputs give the same fit;
+  best held-out PSNR by less than ``converge_db``, else after ``iterations`` steps. A capture too small to hold a
+  view out (fewer than ``holdout_every`` views) is tested the same way on the training views' PSNR (a plateau of
+  the fit itself; the curve's points then carry ``psnr_train``). Nothing depends on the clock: the same inputs
+  give the same fit;
 - then the model only the scene needs: prune Gaussians that contribute nothing, keep the smallest
   top-contribution subset and the lowest SH degree within ``margin_db`` of the full model on the held-out views,
   optionally drop Gaussians of back-facing faces, keep the garment's (:mod:`pgc.splats.fitplan`);
@@ -224,7 +226,7 @@ def training_view(train: Sequence[Any], order: list[int], rng: np.random.Generat
     return view.coarse if coarse and view.coarse is not None else view
 
 
-def heldout_psnr(backend: FitBackend, views: Sequence[_Prepared], degree: int,
+def views_psnr(backend: FitBackend, views: Sequence[_Prepared], degree: int,
                  keep: np.ndarray | None = None) -> float:
     """Mean PSNR (dB, sRGB) of renders over the background against the images of ``views``."""
     if not views:
@@ -273,6 +275,7 @@ def _fit(backend: FitBackend, capture: Capture, mesh: Mesh, s: FitSplatsSettings
         views.append(_Prepared(full, backend.prepare(full),
                                None if coarse is None else _Prepared(coarse, backend.prepare(coarse))))
     train, held = [views[i] for i in train_ids], [views[i] for i in held_ids]
+    probe, probe_key = (held, "psnr_heldout") if held else (train, "psnr_train")  # the convergence test's views
     backend.reserve([v.handle for v in views] + [v.coarse.handle for v in views if v.coarse is not None])
 
     ckpt = Path(s.checkpoint_dir) / f"fit_splats_{backend.name}.npz" if s.checkpoint_dir else None
@@ -305,15 +308,15 @@ def _fit(backend: FitBackend, capture: Capture, mesh: Mesh, s: FitSplatsSettings
                     backend.load_state(state)
                 relocated += moved
             done = step >= s.iterations
-            evaluate = bool(held) and (step % s.converge_every == 0 or done)
+            evaluate = step % s.converge_every == 0 or done
             if step % s.log_every == 0 or evaluate or done:
                 figures = {"loss": float(loss), "psnr_train_view": -10.0 * math.log10(max(float(mse), 1e-20)),
                            "sh_degree": degree, "progress": step / s.iterations}
                 if evaluate:
-                    figures["psnr_heldout"] = heldout_psnr(backend, held, degree)
-                    evaluations.append(figures["psnr_heldout"])
+                    figures[probe_key] = views_psnr(backend, probe, degree)
+                    evaluations.append(figures[probe_key])
                     point = {"iteration": step, "seconds": time.perf_counter() - start,
-                             "psnr_heldout": figures["psnr_heldout"]}
+                             probe_key: figures[probe_key]}
                     if step / s.iterations >= s.converge_after and converged(evaluations, s):
                         point["converged"] = True
                         stopped = "converged"
@@ -330,7 +333,7 @@ def _fit(backend: FitBackend, capture: Capture, mesh: Mesh, s: FitSplatsSettings
                                    "fit_seconds": fit_seconds, "time_to_psnr": curve, "views_train": len(train),
                                    "views_heldout": len(held), "lr_factor": lr_factor, "relocated": relocated}
         contrib = backend.contributions([v.handle for v in train], degree)
-        keep, degree = select_model(contrib, lambda k, d: heldout_psnr(backend, held, d, k), degree, bool(held),
+        keep, degree = select_model(contrib, lambda k, d: views_psnr(backend, held, d, k), degree, bool(held),
                                     s, figures)
         current = backend.gaussians()
         keep = final_keep(keep, current.parent, mesh, [v.view.camera for v in train], s, capture.garment_label_ids,
