@@ -17,11 +17,11 @@ binning, compiled compositing) and the JAX renderer's forward+backward; it repor
 second (pairs inside the footprint boxes, counted by the fused kernel) and, from the same run, this machine's
 float FMA peak and exp throughput (compiled loops with the kernel's flags) and torch's sgemm GFLOP/s, so the
 kernel's FLOP rate (FORWARD_FLOPS / BACKWARD_FLOPS per pair) shows as a fraction of them. Times there are CPU
-seconds (the machine is shared; wall seconds are recorded too); the default is one kernel thread, so idle
-OpenMP spinning does not count as work.
+seconds of all threads (the machine is shared; wall seconds are recorded too), measured at each of ``--threads``
+(default 1 and 2 kernel threads); throughputs are per second of one core's time (CPU seconds / threads).
 
     python benchmarks/bench_splat.py [--sizes 128 256 512] [--counts 10000 50000 200000] [--fit] [--out FILE]
-    python benchmarks/bench_splat.py --sizes --kernel-sizes 256 --kernel-counts 10000 50000 --threads 1
+    python benchmarks/bench_splat.py --sizes --kernel-sizes 256 --kernel-counts 10000 50000 --threads 1 2
 """
 
 from __future__ import annotations
@@ -146,73 +146,73 @@ def kernel_benchmarks(args, reg, env) -> list[dict[str, Any]]:
     from pgc_torch.splat.rasterizer import rasterize
     from pgc_torch.threads import torch_threads
 
-    peaks = fused.machine_peaks(args.threads)
-    peaks["sgemm_flops"] = sgemm_flops(args.threads)
-    print(f"  machine ({args.threads} threads, per second of CPU time of each): FMA peak "
-          f"{peaks['fma_flops'] / 1e9:.1f} GFLOP/s, exp {peaks['exp_per_s'] / 1e9:.2f} G/s, torch sgemm "
-          f"{peaks['sgemm_flops'] / 1e9:.1f} GFLOP/s")
     known = {i.name: i for i in reg.list("splat_renderer")}
     jax_renderer = known["jax"].create() if "jax" in known and known["jax"].available else None
     records, rows = [], []
-    for size in args.kernel_sizes:
-        for count in args.kernel_counts:
-            world, camera = surface_scene(count, size)
-            label = f"{size}px/{count // 1000}k"
-            rot = quat_to_rotmat(torch.tensor(np.asarray(world.quats), dtype=torch.float64)).float()
-            base = [torch.tensor(np.asarray(x), dtype=torch.float32) for x in
-                    (world.means, world.scales, world.opacities, world.sh)]
-            stats = fused.render_stats(base[0], rot, *base[1:], camera, count=world.sh.shape[1],
-                                       threads=args.threads)
+    for threads, size, count in ((t, s, c) for t in args.threads for s in args.kernel_sizes
+                                 for c in args.kernel_counts):
+        peaks = fused.machine_peaks(threads)
+        peaks["sgemm_flops"] = sgemm_flops(threads)
+        print(f"  machine ({threads} threads, per second of CPU time of each): FMA peak "
+              f"{peaks['fma_flops'] / 1e9:.1f} GFLOP/s, exp {peaks['exp_per_s'] / 1e9:.2f} G/s, torch sgemm "
+              f"{peaks['sgemm_flops'] / 1e9:.1f} GFLOP/s")
+        world, camera = surface_scene(count, size)
+        label = f"{size}px/{count // 1000}k"
+        rot = quat_to_rotmat(torch.tensor(np.asarray(world.quats), dtype=torch.float64)).float()
+        base = [torch.tensor(np.asarray(x), dtype=torch.float32) for x in
+                (world.means, world.scales, world.opacities, world.sh)]
+        stats = fused.render_stats(base[0], rot, *base[1:], camera, count=world.sh.shape[1],
+                                   threads=threads)
 
-            def forward(backend: str):
-                @torch_threads(1)
-                def run() -> None:
-                    with torch.no_grad():
-                        rasterize(base[0], rot, *base[1:], camera, backend=backend, threads=args.threads)
-                return run
+        def forward(backend: str):
+            @torch_threads(1)
+            def run() -> None:
+                with torch.no_grad():
+                    rasterize(base[0], rot, *base[1:], camera, backend=backend, threads=threads)
+            return run
 
-            def backward(backend: str):
-                @torch_threads(1)
-                def run() -> None:
-                    p = [x.clone().requires_grad_() for x in (base[0], rot, *base[1:])]
-                    color, alpha, _ = rasterize(*p, camera, backend=backend, threads=args.threads)
-                    (color.sum() + alpha.sum()).backward()
-                return run
+        def backward(backend: str):
+            @torch_threads(1)
+            def run() -> None:
+                p = [x.clone().requires_grad_() for x in (base[0], rot, *base[1:])]
+                color, alpha, _ = rasterize(*p, camera, backend=backend, threads=threads)
+                (color.sum() + alpha.sum()).backward()
+            return run
 
-            measured = {}
-            for backend in ("fused", "cpp"):
-                measured[backend] = (min_time(forward(backend), args.repeats),
-                                     min_time(backward(backend), args.repeats))
-            if jax_renderer is not None:
-                measured["jax"] = ((float("nan"), float("nan")),
-                                   min_time(BACKWARD["jax"](jax_renderer, world, camera), args.repeats))
-            (f_fused, fc_fused), (b_fused, bc_fused) = measured["fused"]
-            for name, ((fwd, fwd_cpu), (fwdbwd, fwdbwd_cpu)) in measured.items():
-                # throughput per second of the cores' time: CPU seconds of all threads / threads
-                fwd_rate = stats["pairs"] / (fwd_cpu / args.threads)
-                bwd_cpu = fwdbwd_cpu - fwd_cpu
-                bwd_rate = stats["pairs"] / (bwd_cpu / args.threads) if bwd_cpu > 0 else float("nan")
-                figures = {"pairs": stats["pairs"], "pairs_per_s_forward": fwd_rate, "pairs_per_s_backward": bwd_rate,
-                           "forward_fraction_of_sgemm": fwd_rate * FORWARD_FLOPS / peaks["sgemm_flops"],
-                           "forward_fraction_of_fma_peak": fwd_rate * FORWARD_FLOPS / peaks["fma_flops"],
-                           "backward_fraction_of_fma_peak": bwd_rate * BACKWARD_FLOPS / peaks["fma_flops"],
-                           "exp_fraction_forward": fwd_rate / peaks["exp_per_s"],
-                           "fwdbwd_cpu_ratio_to_fused": fwdbwd_cpu / bc_fused, "fwdbwd_wall_ratio_to_fused":
-                           fwdbwd / b_fused, "seconds_cpu": fwd_cpu, "seconds_forward_backward_cpu": fwdbwd_cpu}
-                records.append({"role": "splat_renderer", "implementation": f"torch/{name}" if name != "jax" else "jax",
-                                "preset": label, "settings": {"size": size, "gaussians": count,
-                                                              "threads": args.threads},
-                                "seconds": fwd, "seconds_forward_backward": fwdbwd, "errors": figures,
-                                "machine": peaks, "versions": env})
-                rows.append({"scene": label, "path": name, "fwd cpu ms": f"{1e3 * fwd_cpu:.1f}",
-                             "fwd+bwd cpu ms": f"{1e3 * fwdbwd_cpu:.1f}",
-                             "fwd+bwd / fused": f"{fwdbwd_cpu / bc_fused:.2f}",
-                             "wall fwd / fwd+bwd ms": f"{1e3 * fwd:.0f} / {1e3 * fwdbwd:.0f}",
-                             "fwd Mpair/s": f"{fwd_rate / 1e6:.0f}", "bwd Mpair/s": f"{bwd_rate / 1e6:.0f}",
-                             "fwd % sgemm": f"{100 * figures['forward_fraction_of_sgemm']:.1f}",
-                             "fwd % FMA peak": f"{100 * figures['forward_fraction_of_fma_peak']:.1f}"})
-    print_table(rows, ["scene", "path", "fwd cpu ms", "fwd+bwd cpu ms", "fwd+bwd / fused", "wall fwd / fwd+bwd ms",
-                       "fwd Mpair/s", "bwd Mpair/s", "fwd % sgemm", "fwd % FMA peak"])
+        measured = {}
+        for backend in ("fused", "cpp"):
+            measured[backend] = (min_time(forward(backend), args.repeats),
+                                 min_time(backward(backend), args.repeats))
+        if jax_renderer is not None and threads == args.threads[0]:  # XLA runs its own thread pool: once
+            measured["jax"] = ((float("nan"), float("nan")),
+                               min_time(BACKWARD["jax"](jax_renderer, world, camera), args.repeats))
+        (f_fused, fc_fused), (b_fused, bc_fused) = measured["fused"]
+        for name, ((fwd, fwd_cpu), (fwdbwd, fwdbwd_cpu)) in measured.items():
+            # throughput per second of the cores' time: CPU seconds of all threads / threads
+            fwd_rate = stats["pairs"] / (fwd_cpu / threads)
+            bwd_cpu = fwdbwd_cpu - fwd_cpu
+            bwd_rate = stats["pairs"] / (bwd_cpu / threads) if bwd_cpu > 0 else float("nan")
+            figures = {"pairs": stats["pairs"], "pairs_per_s_forward": fwd_rate, "pairs_per_s_backward": bwd_rate,
+                       "forward_fraction_of_sgemm": fwd_rate * FORWARD_FLOPS / peaks["sgemm_flops"],
+                       "forward_fraction_of_fma_peak": fwd_rate * FORWARD_FLOPS / peaks["fma_flops"],
+                       "backward_fraction_of_fma_peak": bwd_rate * BACKWARD_FLOPS / peaks["fma_flops"],
+                       "exp_fraction_forward": fwd_rate / peaks["exp_per_s"],
+                       "fwdbwd_cpu_ratio_to_fused": fwdbwd_cpu / bc_fused, "fwdbwd_wall_ratio_to_fused":
+                       fwdbwd / b_fused, "seconds_cpu": fwd_cpu, "seconds_forward_backward_cpu": fwdbwd_cpu}
+            records.append({"role": "splat_renderer", "implementation": f"torch/{name}" if name != "jax" else "jax",
+                            "preset": label, "settings": {"size": size, "gaussians": count,
+                                                          "threads": threads},
+                            "seconds": fwd, "seconds_forward_backward": fwdbwd, "errors": figures,
+                            "machine": peaks, "versions": env})
+            rows.append({"scene": label, "threads": threads, "path": name, "fwd cpu ms": f"{1e3 * fwd_cpu:.1f}",
+                         "fwd+bwd cpu ms": f"{1e3 * fwdbwd_cpu:.1f}",
+                         "fwd+bwd / fused": f"{fwdbwd_cpu / bc_fused:.2f}",
+                         "wall fwd / fwd+bwd ms": f"{1e3 * fwd:.0f} / {1e3 * fwdbwd:.0f}",
+                         "fwd Mpair/s": f"{fwd_rate / 1e6:.0f}", "bwd Mpair/s": f"{bwd_rate / 1e6:.0f}",
+                         "fwd % sgemm": f"{100 * figures['forward_fraction_of_sgemm']:.1f}",
+                         "fwd % FMA peak": f"{100 * figures['forward_fraction_of_fma_peak']:.1f}"})
+    print_table(rows, ["scene", "threads", "path", "fwd cpu ms", "fwd+bwd cpu ms", "fwd+bwd / fused",
+                       "wall fwd / fwd+bwd ms", "fwd Mpair/s", "bwd Mpair/s", "fwd % sgemm", "fwd % FMA peak"])
     return records
 
 
@@ -319,7 +319,7 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--kernel-sizes", type=int, nargs="*", default=[256])
     parser.add_argument("--kernel-counts", type=int, nargs="*", default=[50000])
-    parser.add_argument("--threads", type=int, default=1, help="kernel threads of the kernel table")
+    parser.add_argument("--threads", type=int, nargs="+", default=[1, 2], help="kernel threads of the kernel table")
     parser.add_argument("--fit", action="store_true", help="also measure the fit's time-to-PSNR curve")
     parser.add_argument("--fit-backends", nargs="+", default=["torch"])
     parser.add_argument("--fit-budget", type=float, default=420.0)

@@ -7,13 +7,14 @@ Peer: the ``ellipsoids`` shape (centres, standard deviations, quaternions, opaci
 forward+backward = the render and the gradient of the image sum w.r.t. every parameter the shape exposes
 (``data``: centres, scales, quaternions; ``opacities``; ``sh_coeffs``). Ours: ``rasterize(backend="fused")``,
 the gradient of colour + alpha sums w.r.t. means, rotation matrices, scales, opacities and SH. Both run on
-the same threads (``--threads``, Dr.Jit's pool set to the same count). The image difference is the mean
-absolute difference of the colours (the peer traces one jittered ray per pixel and composites along the ray
-in its own order, so the images agree in content, not to rounding). Seconds after a warm-up call (Mitsuba's
-kernels are compiled in the warm-up): the fastest CPU time of ``--repeats`` calls (process, all threads: the
-machine is shared) and the median wall time; ratios are of CPU times. Default one thread each.
+the same number of threads (each of ``--threads``, default 1 and 2; Dr.Jit's pool set to the same count).
+The image difference is the mean absolute difference of the colours (the peer traces one jittered ray per
+pixel and composites along the ray in its own order, so the images agree in content, not to rounding).
+Seconds after a warm-up call (Mitsuba's kernels are compiled in the warm-up; every call waits for its
+asynchronous kernels): the fastest CPU time of ``--repeats`` calls (process, all threads: the machine is
+shared) and the median wall time; ratios are of CPU times at equal threads.
 
-    python benchmarks/bench_splat_peer.py [--sizes 256 512] [--counts 10000 50000] [--threads 1] [--out FILE]
+    python benchmarks/bench_splat_peer.py [--sizes 256 512] [--counts 10000 50000] [--threads 1 2] [--out FILE]
 """
 
 from __future__ import annotations
@@ -95,6 +96,7 @@ def peer(world, camera, threads: int):
     def forward():
         img = mi.render(scene, sensor=sensor, spp=1, seed=0)
         dr.eval(img)
+        dr.sync_thread()  # the LLVM kernels run asynchronously in Dr.Jit's pool: wait for them
         return img
 
     def backward():
@@ -105,6 +107,7 @@ def peer(world, camera, threads: int):
         dr.backward(dr.sum(img, axis=None))
         grads = [dr.grad(params[k]) for k in keys]
         dr.eval(*grads)
+        dr.sync_thread()
         for k in keys:
             dr.disable_grad(params[k])
 
@@ -115,7 +118,7 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[256, 512])
     parser.add_argument("--counts", type=int, nargs="+", default=[10000, 50000])
-    parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--out", default="bench_splat_peer.json")
     args = parser.parse_args(argv)
@@ -127,30 +130,29 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     torch.set_num_threads(1)  # the fused kernel uses its own OpenMP threads
     env = package_versions(("pgc", "numpy", "torch", "mitsuba", "drjit"))
     records, rows = [], []
-    for size in args.sizes:
-        for count in args.counts:
-            world, camera = surface_scene(count, size)
-            label = f"{size}px/{count // 1000}k"
-            runs = {"ours (fused)": ours(world, camera, args.threads), "mitsuba": peer(world, camera, args.threads)}
-            measured = {}
-            for name, (fwd, bwd, image) in runs.items():
-                measured[name] = (*times(fwd, args.repeats), *times(bwd, args.repeats), image())
-            ref = measured["ours (fused)"]
-            for name, (f_wall, f_cpu, b_wall, b_cpu, img) in measured.items():
-                diff = float(np.abs(img - ref[4]).mean())
-                records.append({"role": "splat_renderer", "implementation": name, "preset": label,
-                                "settings": {"size": size, "gaussians": count, "threads": args.threads, "spp": 1},
-                                "seconds": f_wall, "seconds_cpu": f_cpu, "seconds_forward_backward": b_wall,
-                                "seconds_forward_backward_cpu": b_cpu,
-                                "errors": {"mean_abs_color_vs_ours": diff}, "versions": env})
-                rows.append({"scene": label, "renderer": name, "fwd cpu ms": f"{1e3 * f_cpu:.1f}",
-                             "fwd+bwd cpu ms": f"{1e3 * b_cpu:.1f}", "fwd / ours": f"{f_cpu / ref[1]:.2f}",
-                             "fwd+bwd / ours": f"{b_cpu / ref[3]:.2f}",
-                             "wall fwd / fwd+bwd ms": f"{1e3 * f_wall:.0f} / {1e3 * b_wall:.0f}",
-                             "mean |diff|": f"{diff:.3f}"})
-                print(f"  {label} {name}: forward {1e3 * f_cpu:.1f} ms, forward+backward {1e3 * b_cpu:.1f} ms (CPU)",
-                      flush=True)
-    print_table(rows, ["scene", "renderer", "fwd cpu ms", "fwd+bwd cpu ms", "fwd / ours", "fwd+bwd / ours",
+    for threads, size, count in ((t, s, c) for t in args.threads for s in args.sizes for c in args.counts):
+        world, camera = surface_scene(count, size)
+        label = f"{size}px/{count // 1000}k"
+        runs = {"ours (fused)": ours(world, camera, threads), "mitsuba": peer(world, camera, threads)}
+        measured = {}
+        for name, (fwd, bwd, image) in runs.items():
+            measured[name] = (*times(fwd, args.repeats), *times(bwd, args.repeats), image())
+        ref = measured["ours (fused)"]
+        for name, (f_wall, f_cpu, b_wall, b_cpu, img) in measured.items():
+            diff = float(np.abs(img - ref[4]).mean())
+            records.append({"role": "splat_renderer", "implementation": name, "preset": label,
+                            "settings": {"size": size, "gaussians": count, "threads": threads, "spp": 1},
+                            "seconds": f_wall, "seconds_cpu": f_cpu, "seconds_forward_backward": b_wall,
+                            "seconds_forward_backward_cpu": b_cpu,
+                            "errors": {"mean_abs_color_vs_ours": diff}, "versions": env})
+            rows.append({"scene": label, "threads": threads, "renderer": name, "fwd cpu ms": f"{1e3 * f_cpu:.1f}",
+                         "fwd+bwd cpu ms": f"{1e3 * b_cpu:.1f}", "fwd / ours": f"{f_cpu / ref[1]:.2f}",
+                         "fwd+bwd / ours": f"{b_cpu / ref[3]:.2f}",
+                         "wall fwd / fwd+bwd ms": f"{1e3 * f_wall:.0f} / {1e3 * b_wall:.0f}",
+                         "mean |diff|": f"{diff:.3f}"})
+            print(f"  {label} {threads} threads {name}: forward {1e3 * f_cpu:.1f} ms, forward+backward "
+                  f"{1e3 * b_cpu:.1f} ms (CPU)", flush=True)
+    print_table(rows, ["scene", "threads", "renderer", "fwd cpu ms", "fwd+bwd cpu ms", "fwd / ours", "fwd+bwd / ours",
                        "wall fwd / fwd+bwd ms", "mean |diff|"])
     Path(args.out).write_text(json.dumps(records, indent=1, default=float) + "\n")
     print(f"wrote {len(records)} records to {args.out}")

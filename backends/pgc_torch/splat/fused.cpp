@@ -9,9 +9,14 @@
 //
 // Per Gaussian (projection, SH, their backward) the arithmetic is float64; per pixel-Gaussian pair it is
 // the input type S (float32: 8-wide AVX2 lanes with a polynomial exp accurate to ~2e-7 relative).
-// Determinism: every pixel's arithmetic is independent of the thread count; the backward writes one
-// gradient row per (tile, Gaussian) entry and sums each Gaussian's rows in tile order, so the gradients are
-// the same bytes for any thread count too.
+// Work saving that changes no pixel: per Gaussian and pixel row, the candidate columns are those of the box
+// that may reach alpha >= 1/255 (the opacity-aware ellipse q <= 2 ln(255 o), with a margin); a Gaussian is
+// binned only to the tiles of its box that hold candidates, and a chunk of 8 pixels starts at a row's first
+// candidate (any column), so small footprints fill the lanes. The exact per-pixel test decides as before.
+// Determinism: every pixel's arithmetic is independent of the thread count; tile lists are a counting sort
+// in rank order (ranks increase within a tile); the backward writes one gradient row per
+// (tile, Gaussian) entry into slots ordered by Gaussian, then tile, and sums each Gaussian's rows in that
+// order, so the gradients are the same bytes for any thread count too.
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -20,6 +25,10 @@
 #include <vector>
 
 #include <omp.h>
+
+#if defined(__AVX2__) && defined(__FMA__)
+#include <immintrin.h>
+#endif
 
 namespace {
 
@@ -271,9 +280,14 @@ template <typename S>
 struct Workspace {
   int H = 0, W = 0, tile = 0, tiles_x = 0, tiles_y = 0;
   std::vector<int64_t> order;              // rank -> Gaussian index, increasing depth (ties by index)
+  std::vector<int64_t> rank_of;            // Gaussian index -> rank (-1: culled)
   std::vector<S> mx, my, qa, qb, qc, op, c0, c1, c2, dep, rad;  // per rank (SoA)
+  std::vector<int32_t> ry0, ry1;           // per rank: candidate pixel rows [ry0, ry1] (global, in the image)
+  std::vector<int64_t> roff;               // per rank: offset of its rows' column ranges in ``xr``
+  std::vector<int32_t> xr;                 // per candidate row: candidate columns [xa, xb] (empty when xa > xb)
   std::vector<int64_t> offsets, ids;       // tile lists of ranks (ranks increase within a tile)
-  std::vector<int64_t> goff, gent;         // per rank: positions of its entries in ``ids``, tile order
+  std::vector<int64_t> ioff, slot;         // entry slots: Gaussian i owns ioff[i] .. ioff[i + 1] - 1 (tile order);
+                                           // slot[j] = the slot of tile-list position j
   std::vector<S> Tfinal;                   // (H, W) final transmittance
   std::vector<int32_t> last;               // (H, W) entries composited in the pixel's tile list
   int64_t pairs = 0;                       // pixel-Gaussian pairs inside footprint boxes (work measure)
@@ -293,51 +307,236 @@ void radix_sort(std::vector<int64_t>& idx, const std::vector<uint32_t>& key) {
 
 constexpr int LANES = 8;  // pixels per SIMD chunk (one AVX2 register of floats)
 
-// Row stride of the per-tile pixel arrays: the tile width rounded up to whole chunks (padding never composites).
-inline int padded(int tile) { return (tile + LANES - 1) / LANES * LANES; }
+// Row stride of the per-tile pixel arrays: the tile width plus one chunk, so a chunk may start at any column of
+// the tile (the padding never composites).
+inline int padded(int tile) { return (tile + LANES - 1) / LANES * LANES + LANES; }
 
-inline int clamp_int(double v, int lo, int hi) { return v < lo ? lo : (v > hi ? hi : int(v)); }
-
-// Rows [ya, yb) and chunk-aligned columns [ca, xb) of a tile (tile-local) that may hold pixel centres of the
-// footprint box of a Gaussian at (gx, gy) with radius r; one pixel of margin: the exact test is per pixel.
-struct Span {
-  int ya, yb, ca, xb;
-};
-template <typename S>
-inline Span span(S gx, S gy, S r, int x0, int y0, int tw, int th) {
-  const double R = double(r);
-  const int xa = clamp_int(std::floor(double(gx) - R - 0.5) - 1 - x0, 0, tw);
-  const int xb = clamp_int(std::ceil(double(gx) + R - 0.5) + 2 - x0, 0, tw);
-  const int ya = clamp_int(std::floor(double(gy) - R - 0.5) - 1 - y0, 0, th);
-  const int yb = clamp_int(std::ceil(double(gy) + R - 0.5) + 2 - y0, 0, th);
-  return {ya, yb, xa / LANES * LANES, xb};
+inline int64_t floor_clamp(double v, int64_t lo, int64_t hi) {
+  return !(v >= double(lo)) ? lo : (v > double(hi) ? hi : int64_t(std::floor(v)));  // NaN -> lo
 }
 
-// Columns [xa, xb) of tile-local row y (pixel centre offset dy from the mean) that may hold pixels with
-// alpha >= 1/255: o exp(-q / 2) >= 1/255 <=> q = A dx^2 + 2 B dx dy + C dy^2 <= tau = 2 ln(255 o); solved for dx
-// on a slightly enlarged ellipse (tau (1 + 1e-3) + 1e-3) with one pixel of margin, so float rounding never
-// drops a contributing pixel (the exact test is per pixel). Returns false when the row has none.
-inline bool row_range(double gx, double dy, double A, double B, double C, double tau, int x0, const Span& sp,
-                      int& ca, int& xb) {
-  if (!(A > 0.0)) {
-    ca = sp.ca;
-    xb = sp.xb;
-    return true;
-  }
-  const double disc = B * B * dy * dy - A * (C * dy * dy - tau);
-  if (disc < 0.0) return false;
-  const double root = std::sqrt(disc);
-  const int xa = std::max(clamp_int(std::floor(gx + (-B * dy - root) / A - 0.5) - 1 - x0, 0, sp.xb), sp.ca);
-  xb = std::min(clamp_int(std::ceil(gx + (-B * dy + root) / A - 0.5) + 2 - x0, 0, sp.xb), sp.xb);
-  ca = xa / LANES * LANES;
-  return ca < xb;
-}
-
-// tau of row_range for opacity o; negative (no pixel reaches 1/255) when o < 1/255.
+// tau of the alpha cutoff for opacity o: o exp(-q / 2) >= 1/255 <=> q = A dx^2 + 2 B dx dy + C dy^2 <= 2 ln(255 o),
+// enlarged to tau (1 + 1e-3) + 1e-3 so float rounding never drops a contributing pixel; negative (no pixel reaches
+// 1/255) when o < 1/255.
 inline double alpha_tau(double o) {
   const double tau = 2.0 * std::log(std::max(255.0 * o, 1e-30));
   return tau * (1.0 + 1e-3) + 1e-3;
 }
+
+// Candidate columns [xa, xb] (global) of the pixel rows [ry0, ry1] of the Gaussian of rank g: pixels whose
+// centre may lie in its footprint box (columns [bx0, bx1], one pixel of margin) and may have alpha >= 1/255 (the
+// ellipse q <= tau solved for dx, x = gx - (B / A) dy +- sqrt(((B^2 - A C) dy^2 + A tau) / A^2), with one pixel of
+// margin; the exact test is per pixel). Rows the per-pixel test rejects (float |dy| > r) get an empty range.
+template <typename S>
+inline void row_columns(const Workspace<S>& w, int64_t g, double tau, int64_t bx0, int64_t bx1, int32_t* out) {
+  const double A = w.qa[g], B = w.qb[g], C = w.qc[g], gx = w.mx[g];
+  const bool ellipse = A > 0.0;
+  const double kb = ellipse ? B / A : 0.0, k2 = ellipse ? (B * B - A * C) / (A * A) : 0.0;
+  const double k0 = ellipse ? tau / A : 0.0;
+  for (int y = w.ry0[g]; y <= w.ry1[g]; ++y, out += 2) {
+    out[0] = 1;
+    out[1] = 0;
+    const S dy = S(y) + S(0.5) - w.my[g];
+    if (std::fabs(dy) > w.rad[g]) continue;
+    int64_t xa = bx0, xb = bx1;
+    if (ellipse) {
+      const double d = dy, h2 = k2 * d * d + k0;
+      if (h2 < 0.0) continue;
+      const double h = std::sqrt(h2), c = gx - kb * d - 0.5;
+      xa = std::max(xa, floor_clamp(c - h, bx0 - 2, bx1 + 2) - 1);
+      xb = std::min(xb, -floor_clamp(-(c + h), -bx1 - 2, -bx0 + 2) + 1);
+    }
+    if (xa > xb) continue;
+    out[0] = int32_t(xa);
+    out[1] = int32_t(xb);
+  }
+}
+
+// One Gaussian in screen space, as the pixel loops read it (rank order copies of the workspace).
+template <typename S>
+struct Splat {
+  S gx, gy, r, A, B, C, o, col0, col1, col2, depth;
+};
+
+// Forward of one chunk of LANES pixels of a row (offset dy from the mean; px: pixel centre x; the other pointers
+// at the chunk's first pixel): alpha, the exact footprint test, front-to-back compositing, early stop.
+template <typename S>
+inline void composite_chunk(const Splat<S>& s, S dy, const S* px, S* T, S* p0, S* p1, S* p2, S* pz, int32_t* lp,
+                            int32_t* dp, int32_t rank) {
+#pragma omp simd
+  for (int l = 0; l < LANES; ++l) {
+    const S dx = px[l] - s.gx;
+    const S power = S(-0.5) * (s.A * dx * dx + s.C * dy * dy) - s.B * dx * dy;
+    const S oG = s.o * exp_neg(power);
+    const S a = oG < S(0.99) ? oG : S(0.99);
+    const bool ok = (dp[l] == 0) & (std::fabs(dx) <= s.r) & (oG >= S(1.0 / 255.0));  // = a >= 1/255
+    const S nT = T[l] * (S(1) - a);
+    const bool stop = ok & (nT < S(1e-4));
+    const bool use = ok & !stop;
+    const S wgt = use ? a * T[l] : S(0);
+    p0[l] += wgt * s.col0;
+    p1[l] += wgt * s.col1;
+    p2[l] += wgt * s.col2;
+    pz[l] += wgt * s.depth;
+    T[l] = use ? nT : T[l];
+    lp[l] = use ? rank : lp[l];
+    dp[l] = stop ? 1 : dp[l];
+  }
+}
+
+// Backward of one chunk, back to front: restores the transmittance in front of the Gaussian (T), the colour and
+// depth composited behind it (q0..qz), and adds its screen-space gradient to the per-lane sums acc (NG x LANES).
+template <typename S>
+inline void backward_chunk(const Splat<S>& s, S dy, const S* px, int32_t jj, const int32_t* lp, S* T, S* q0, S* q1,
+                           S* q2, S* qz, const S* Tf, const S* gT, const S* gc0, const S* gc1, const S* gc2,
+                           const S* gd, S* acc) {
+#pragma omp simd
+  for (int l = 0; l < LANES; ++l) {
+    const S dx = px[l] - s.gx;
+    const S power = S(-0.5) * (s.A * dx * dx + s.C * dy * dy) - s.B * dx * dy;
+    const S G = exp_neg(power);
+    const S oG = s.o * G;
+    const S a = oG < S(0.99) ? oG : S(0.99);
+    const bool ok = (jj < lp[l]) & (std::fabs(dx) <= s.r) & (oG >= S(1.0 / 255.0));
+    const S one_m = S(1) - a;
+    const S Tc = ok ? T[l] / one_m : T[l];  // transmittance in front of this Gaussian
+    const S wgt = ok ? a * Tc : S(0);
+    acc[5 * LANES + l] += wgt * gc0[l];
+    acc[6 * LANES + l] += wgt * gc1[l];
+    acc[7 * LANES + l] += wgt * gc2[l];
+    acc[9 * LANES + l] += wgt * gd[l];
+    const S g_a = Tc * ((s.col0 - q0[l]) * gc0[l] + (s.col1 - q1[l]) * gc1[l] + (s.col2 - q2[l]) * gc2[l] +
+                        (s.depth - qz[l]) * gd[l]) - Tf[l] / one_m * gT[l];
+    q0[l] = ok ? a * s.col0 + one_m * q0[l] : q0[l];
+    q1[l] = ok ? a * s.col1 + one_m * q1[l] : q1[l];
+    q2[l] = ok ? a * s.col2 + one_m * q2[l] : q2[l];
+    qz[l] = ok ? a * s.depth + one_m * qz[l] : qz[l];
+    T[l] = Tc;
+    const S ga = (ok & (oG <= S(0.99))) ? g_a : S(0);  // clamped alpha: no gradient to o or G
+    acc[8 * LANES + l] += ga * G;
+    const S gp = ga * a;  // dL/dpower
+    acc[0 * LANES + l] += gp * (s.A * dx + s.B * dy);
+    acc[1 * LANES + l] += gp * (s.B * dx + s.C * dy);
+    acc[2 * LANES + l] += gp * S(-0.5) * dx * dx;
+    acc[3 * LANES + l] += gp * (-dx * dy);
+    acc[4 * LANES + l] += gp * S(-0.5) * dy * dy;
+  }
+}
+
+#if defined(__AVX2__) && defined(__FMA__)
+// float32 chunks in AVX2 intrinsics: the same arithmetic as the generic loops, written out because GCC turns
+// the loops' conditional updates into masked stores (vmaskmovps), which are microcoded and slow on AMD cores;
+// here every lane is blended in registers and stored whole.
+inline __m256 exp_neg8(__m256 x) {
+  x = _mm256_min_ps(_mm256_max_ps(x, _mm256_set1_ps(-30.0f)), _mm256_setzero_ps());
+  const __m256 n = _mm256_floor_ps(_mm256_fmadd_ps(x, _mm256_set1_ps(1.44269504088896341f), _mm256_set1_ps(0.5f)));
+  __m256 r = _mm256_fnmadd_ps(n, _mm256_set1_ps(0.693359375f), x);
+  r = _mm256_fmadd_ps(n, _mm256_set1_ps(2.12194440e-4f), r);
+  __m256 p = _mm256_set1_ps(1.9875691500e-4f);
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(1.3981999507e-3f));
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(8.3334519073e-3f));
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(4.1665795894e-2f));
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(1.6666665459e-1f));
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(5.0000001201e-1f));
+  p = _mm256_add_ps(_mm256_fmadd_ps(p, _mm256_mul_ps(r, r), r), _mm256_set1_ps(1.0f));
+  const __m256i bits = _mm256_slli_epi32(_mm256_add_epi32(_mm256_cvtps_epi32(n), _mm256_set1_epi32(127)), 23);
+  return _mm256_mul_ps(p, _mm256_castsi256_ps(bits));
+}
+
+// alpha inputs of a chunk: dx, exp(power) and o exp(power)
+inline void chunk_alpha(const Splat<float>& s, float dy, const float* px, __m256& dx, __m256& G, __m256& oG) {
+  dx = _mm256_sub_ps(_mm256_loadu_ps(px), _mm256_set1_ps(s.gx));
+  const __m256 q = _mm256_fmadd_ps(_mm256_mul_ps(_mm256_set1_ps(s.A), dx), dx, _mm256_set1_ps(s.C * dy * dy));
+  const __m256 power = _mm256_fmsub_ps(_mm256_set1_ps(-0.5f), q, _mm256_mul_ps(_mm256_set1_ps(s.B * dy), dx));
+  G = exp_neg8(power);
+  oG = _mm256_mul_ps(_mm256_set1_ps(s.o), G);
+}
+
+inline __m256 in_box(const Splat<float>& s, __m256 dx) {
+  const __m256 adx = _mm256_andnot_ps(_mm256_set1_ps(-0.0f), dx);
+  return _mm256_cmp_ps(adx, _mm256_set1_ps(s.r), _CMP_LE_OQ);
+}
+
+template <>
+inline void composite_chunk<float>(const Splat<float>& s, float dy, const float* px, float* T, float* p0, float* p1,
+                                   float* p2, float* pz, int32_t* lp, int32_t* dp, int32_t rank) {
+  __m256 dx, G, oG;
+  chunk_alpha(s, dy, px, dx, G, oG);
+  const __m256 a = _mm256_min_ps(oG, _mm256_set1_ps(0.99f));
+  const __m256i done = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(dp));
+  const __m256 live = _mm256_castsi256_ps(_mm256_cmpeq_epi32(done, _mm256_setzero_si256()));
+  const __m256 ok = _mm256_and_ps(_mm256_and_ps(live, in_box(s, dx)),
+                                  _mm256_cmp_ps(oG, _mm256_set1_ps(1.0f / 255.0f), _CMP_GE_OQ));
+  const __m256 t = _mm256_loadu_ps(T);
+  const __m256 nT = _mm256_mul_ps(t, _mm256_sub_ps(_mm256_set1_ps(1.0f), a));
+  const __m256 stop = _mm256_and_ps(ok, _mm256_cmp_ps(nT, _mm256_set1_ps(1e-4f), _CMP_LT_OQ));
+  const __m256 use = _mm256_andnot_ps(stop, ok);
+  const __m256 wgt = _mm256_and_ps(use, _mm256_mul_ps(a, t));
+  _mm256_storeu_ps(p0, _mm256_fmadd_ps(wgt, _mm256_set1_ps(s.col0), _mm256_loadu_ps(p0)));
+  _mm256_storeu_ps(p1, _mm256_fmadd_ps(wgt, _mm256_set1_ps(s.col1), _mm256_loadu_ps(p1)));
+  _mm256_storeu_ps(p2, _mm256_fmadd_ps(wgt, _mm256_set1_ps(s.col2), _mm256_loadu_ps(p2)));
+  _mm256_storeu_ps(pz, _mm256_fmadd_ps(wgt, _mm256_set1_ps(s.depth), _mm256_loadu_ps(pz)));
+  _mm256_storeu_ps(T, _mm256_blendv_ps(t, nT, use));
+  const __m256i lv = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(lp));
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(lp),
+                      _mm256_castps_si256(_mm256_blendv_ps(_mm256_castsi256_ps(lv),
+                                                           _mm256_castsi256_ps(_mm256_set1_epi32(rank)), use)));
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(dp),
+                      _mm256_castps_si256(_mm256_blendv_ps(_mm256_castsi256_ps(done),
+                                                           _mm256_castsi256_ps(_mm256_set1_epi32(1)), stop)));
+}
+
+template <>
+inline void backward_chunk<float>(const Splat<float>& s, float dy, const float* px, int32_t jj, const int32_t* lp,
+                                  float* T, float* q0, float* q1, float* q2, float* qz, const float* Tf,
+                                  const float* gT, const float* gc0, const float* gc1, const float* gc2,
+                                  const float* gd, float* acc) {
+  __m256 dx, G, oG;
+  chunk_alpha(s, dy, px, dx, G, oG);
+  const __m256 a = _mm256_min_ps(oG, _mm256_set1_ps(0.99f));
+  const __m256i lv = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(lp));
+  const __m256 behind = _mm256_castsi256_ps(_mm256_cmpgt_epi32(lv, _mm256_set1_epi32(jj)));
+  const __m256 ok = _mm256_and_ps(_mm256_and_ps(behind, in_box(s, dx)),
+                                  _mm256_cmp_ps(oG, _mm256_set1_ps(1.0f / 255.0f), _CMP_GE_OQ));
+  if (_mm256_testz_ps(ok, ok)) return;  // no lane composited this Gaussian: nothing changes
+  const __m256 one_m = _mm256_sub_ps(_mm256_set1_ps(1.0f), a);
+  const __m256 t = _mm256_loadu_ps(T);
+  const __m256 Tc = _mm256_blendv_ps(t, _mm256_div_ps(t, one_m), ok);
+  const __m256 wgt = _mm256_and_ps(ok, _mm256_mul_ps(a, Tc));
+  const __m256 g0 = _mm256_loadu_ps(gc0), g1 = _mm256_loadu_ps(gc1), g2 = _mm256_loadu_ps(gc2),
+               gz = _mm256_loadu_ps(gd);
+  auto add = [&](int q, __m256 v) {
+    _mm256_storeu_ps(acc + q * LANES, _mm256_add_ps(_mm256_loadu_ps(acc + q * LANES), v));
+  };
+  add(5, _mm256_mul_ps(wgt, g0));
+  add(6, _mm256_mul_ps(wgt, g1));
+  add(7, _mm256_mul_ps(wgt, g2));
+  add(9, _mm256_mul_ps(wgt, gz));
+  const __m256 c0 = _mm256_set1_ps(s.col0), c1 = _mm256_set1_ps(s.col1), c2 = _mm256_set1_ps(s.col2),
+               cz = _mm256_set1_ps(s.depth);
+  const __m256 r0 = _mm256_loadu_ps(q0), r1 = _mm256_loadu_ps(q1), r2 = _mm256_loadu_ps(q2), rz = _mm256_loadu_ps(qz);
+  __m256 dot = _mm256_mul_ps(_mm256_sub_ps(c0, r0), g0);
+  dot = _mm256_fmadd_ps(_mm256_sub_ps(c1, r1), g1, dot);
+  dot = _mm256_fmadd_ps(_mm256_sub_ps(c2, r2), g2, dot);
+  dot = _mm256_fmadd_ps(_mm256_sub_ps(cz, rz), gz, dot);
+  const __m256 g_a = _mm256_fmsub_ps(Tc, dot, _mm256_mul_ps(_mm256_div_ps(_mm256_loadu_ps(Tf), one_m),
+                                                            _mm256_loadu_ps(gT)));
+  _mm256_storeu_ps(q0, _mm256_blendv_ps(r0, _mm256_fmadd_ps(a, c0, _mm256_mul_ps(one_m, r0)), ok));
+  _mm256_storeu_ps(q1, _mm256_blendv_ps(r1, _mm256_fmadd_ps(a, c1, _mm256_mul_ps(one_m, r1)), ok));
+  _mm256_storeu_ps(q2, _mm256_blendv_ps(r2, _mm256_fmadd_ps(a, c2, _mm256_mul_ps(one_m, r2)), ok));
+  _mm256_storeu_ps(qz, _mm256_blendv_ps(rz, _mm256_fmadd_ps(a, cz, _mm256_mul_ps(one_m, rz)), ok));
+  _mm256_storeu_ps(T, Tc);
+  const __m256 ga = _mm256_and_ps(_mm256_and_ps(ok, _mm256_cmp_ps(oG, _mm256_set1_ps(0.99f), _CMP_LE_OQ)), g_a);
+  add(8, _mm256_mul_ps(ga, G));
+  const __m256 gp = _mm256_mul_ps(ga, a);
+  const __m256 vdy = _mm256_set1_ps(dy), A = _mm256_set1_ps(s.A), B = _mm256_set1_ps(s.B), C = _mm256_set1_ps(s.C);
+  add(0, _mm256_mul_ps(gp, _mm256_fmadd_ps(A, dx, _mm256_mul_ps(B, vdy))));
+  add(1, _mm256_mul_ps(gp, _mm256_fmadd_ps(B, dx, _mm256_mul_ps(C, vdy))));
+  add(2, _mm256_mul_ps(_mm256_mul_ps(gp, _mm256_set1_ps(-0.5f)), _mm256_mul_ps(dx, dx)));
+  add(3, _mm256_mul_ps(gp, _mm256_mul_ps(_mm256_sub_ps(_mm256_setzero_ps(), dx), vdy)));
+  add(4, _mm256_mul_ps(_mm256_mul_ps(gp, _mm256_set1_ps(-0.5f)), _mm256_set1_ps(dy * dy)));
+}
+#endif
 
 template <typename S>
 Workspace<S>* forward(const Inputs<S>& in, const CameraParams& cam, int H, int W, int tile, const S* bg,
@@ -349,7 +548,7 @@ Workspace<S>* forward(const Inputs<S>& in, const CameraParams& cam, int H, int W
   ws->tiles_x = (W + tile - 1) / tile;
   ws->tiles_y = (H + tile - 1) / tile;
   const int64_t n = in.n;
-  // 1. projection and SH per Gaussian
+  // 1. projection and SH per Gaussian; culling (behind the near plane, box outside the image, opacity < 1/255)
   std::vector<S> mx(n), my(n), qa(n), qb(n), qc(n), c0(n), c1(n), c2(n), dep(n), rad(n);
   std::vector<int32_t> box(4 * n);
   std::vector<char> visible(n);
@@ -371,7 +570,8 @@ Workspace<S>* forward(const Inputs<S>& in, const CameraParams& cam, int H, int W
     const double r = double(rad[i]), u = double(mx[i]), v = double(my[i]);
     const double x0 = std::ceil(u - r - 0.5), x1 = std::floor(u + r - 0.5);
     const double y0 = std::ceil(v - r - 0.5), y1 = std::floor(v + r - 0.5);
-    visible[i] = r > 0 && x0 <= x1 && y0 <= y1 && x0 <= W - 1 && x1 >= 0 && y0 <= H - 1 && y1 >= 0;
+    visible[i] = r > 0 && x0 <= x1 && y0 <= y1 && x0 <= W - 1 && x1 >= 0 && y0 <= H - 1 && y1 >= 0 &&
+                 alpha_tau(double(in.opac[i])) >= 0.0;
     if (visible[i]) {
       box[4 * i] = int32_t(std::max(x0, 0.0));
       box[4 * i + 1] = int32_t(std::min(x1, double(W - 1)));
@@ -379,7 +579,7 @@ Workspace<S>* forward(const Inputs<S>& in, const CameraParams& cam, int H, int W
       box[4 * i + 3] = int32_t(std::min(y1, double(H - 1)));
     }
   }
-  // 2. depth order (stable: ties by index) and tile lists
+  // 2. depth order (stable: ties by index), per-rank copies (SoA, rank order)
   std::vector<int64_t>& order = ws->order;
   std::vector<uint32_t> key(n);
   for (int64_t i = 0; i < n; ++i) {
@@ -393,52 +593,101 @@ Workspace<S>* forward(const Inputs<S>& in, const CameraParams& cam, int H, int W
     std::stable_sort(order.begin(), order.end(), [&](int64_t a, int64_t b) { return dep[a] < dep[b]; });
   const int64_t m = int64_t(order.size());
   const int ntiles = ws->tiles_x * ws->tiles_y;
-  ws->offsets.assign(ntiles + 1, 0);
-  ws->goff.assign(m + 1, 0);
-  auto gather = [&](std::vector<S>& dst, const std::vector<S>& src) {
-    dst.resize(m);
-    for (int64_t r = 0; r < m; ++r) dst[r] = src[order[r]];
-  };
-  gather(ws->mx, mx);
-  gather(ws->my, my);
-  gather(ws->qa, qa);
-  gather(ws->qb, qb);
-  gather(ws->qc, qc);
-  gather(ws->c0, c0);
-  gather(ws->c1, c1);
-  gather(ws->c2, c2);
-  gather(ws->dep, dep);
-  gather(ws->rad, rad);
+  ws->rank_of.assign(n, -1);
+  for (int64_t r = 0; r < m; ++r) ws->rank_of[order[r]] = r;
+  std::vector<S>* dst[10] = {&ws->mx, &ws->my, &ws->qa, &ws->qb, &ws->qc, &ws->c0, &ws->c1, &ws->c2, &ws->dep,
+                             &ws->rad};
+  const std::vector<S>* src[10] = {&mx, &my, &qa, &qb, &qc, &c0, &c1, &c2, &dep, &rad};
+  for (auto* d : dst) d->resize(m);
   ws->op.resize(m);
-  for (int64_t r = 0; r < m; ++r) ws->op[r] = in.opac[order[r]];
-  int64_t pairs = 0;
-  for (int64_t r = 0; r < m; ++r) {
-    const int32_t* b = &box[4 * order[r]];
-    pairs += int64_t(b[1] - b[0] + 1) * (b[3] - b[2] + 1);
-    const int tx0 = b[0] / tile, tx1 = b[1] / tile, ty0 = b[2] / tile, ty1 = b[3] / tile;
-    for (int ty = ty0; ty <= ty1; ++ty)
-      for (int tx = tx0; tx <= tx1; ++tx) ++ws->offsets[ty * ws->tiles_x + tx + 1];
-    ws->goff[r + 1] = ws->goff[r] + int64_t(tx1 - tx0 + 1) * (ty1 - ty0 + 1);
+  ws->ry0.resize(m);
+  ws->ry1.resize(m);
+  ws->roff.assign(m + 1, 0);
+  std::vector<int32_t> rbox(4 * m);  // footprint box per rank
+  std::vector<int64_t> boff(m + 1, 0);  // per rank: its bands of tile rows (tile row, first and last tile column)
+  for (int64_t r = 0; r < m; ++r) {  // serial: cheap, and each parallel region costs a barrier on a busy machine
+    const int64_t i = order[r];
+    for (int q = 0; q < 10; ++q) (*dst[q])[r] = (*src[q])[i];
+    ws->op[r] = in.opac[i];
+    for (int q = 0; q < 4; ++q) rbox[4 * r + q] = box[4 * i + q];
+    // candidate rows: the box rows with one row of margin (the per-row test is in float)
+    ws->ry0[r] = std::max(box[4 * i + 2] - 1, 0);
+    ws->ry1[r] = std::min(box[4 * i + 3] + 1, H - 1);
+    ws->roff[r + 1] = ws->ry1[r] - ws->ry0[r] + 1;
+    boff[r + 1] = box[4 * i + 3] / tile - box[4 * i + 2] / tile + 1;
   }
+  for (int64_t r = 0; r < m; ++r) {
+    ws->roff[r + 1] += ws->roff[r];
+    boff[r + 1] += boff[r];
+  }
+  // 3. candidate columns per row (the alpha ellipse within the box), entries per rank: the tiles that hold a
+  // candidate pixel (per band of tile rows, the tiles between the band's leftmost and rightmost candidate)
+  ws->xr.resize(2 * ws->roff[m]);
+  std::vector<int64_t> entries(m);
+  std::vector<int64_t> bpairs(m);
+  // per band of tile rows of the footprint box: the first and last tile column holding a candidate pixel inside
+  // the box (the tiles of the contract's box that the alpha ellipse reaches; none when first > last)
+  std::vector<int32_t> band_tx(2 * boff[m]);
+#pragma omp parallel for schedule(static) num_threads(threads)
+  for (int64_t r = 0; r < m; ++r) {
+    const int32_t* b = &rbox[4 * r];
+    bpairs[r] = int64_t(b[1] - b[0] + 1) * (b[3] - b[2] + 1);
+    int32_t* xr = ws->xr.data() + 2 * ws->roff[r];
+    row_columns(*ws, r, alpha_tau(double(ws->op[r])), std::max(b[0] - 1, 0), std::min(b[1] + 1, W - 1), xr);
+    int32_t* bt = band_tx.data() + 2 * boff[r];
+    const int ty0 = b[2] / tile;
+    int64_t count = 0;
+    for (int ty = ty0; ty <= b[3] / tile; ++ty, bt += 2) {
+      int lo = W, hi = -1;
+      for (int y = std::max(ty * tile, b[2]); y <= std::min(ty * tile + tile - 1, b[3]); ++y) {
+        const int32_t* row = xr + 2 * (y - ws->ry0[r]);
+        const int xa = std::max(row[0], b[0]), xb = std::min(row[1], b[1]);
+        if (xa <= xb) {
+          lo = std::min(lo, xa);
+          hi = std::max(hi, xb);
+        }
+      }
+      bt[0] = lo <= hi ? lo / tile : 1;
+      bt[1] = lo <= hi ? hi / tile : 0;
+      count += bt[1] - bt[0] + 1;
+    }
+    entries[r] = count;
+  }
+  auto bands = [&](int64_t r, auto&& visit) {  // visit(ty, tx0, tx1) for every band of rank r with tiles
+    const int32_t* bt = band_tx.data() + 2 * boff[r];
+    const int ty0 = rbox[4 * r + 2] / tile;
+    for (int64_t k = 0; k < boff[r + 1] - boff[r]; ++k, bt += 2)
+      if (bt[0] <= bt[1]) visit(ty0 + int(k), bt[0], bt[1]);
+  };
+  int64_t pairs = 0;
+  for (int64_t r = 0; r < m; ++r) pairs += bpairs[r];
   ws->pairs = pairs;
+  ws->ioff.assign(n + 1, 0);
+  for (int64_t r = 0; r < m; ++r) ws->ioff[order[r] + 1] = entries[r];
+  for (int64_t i = 0; i < n; ++i) ws->ioff[i + 1] += ws->ioff[i];
+  // 4. tile lists by a counting sort in rank order (ranks increase within a tile)
+  ws->offsets.assign(ntiles + 1, 0);
+  for (int64_t r = 0; r < m; ++r)
+    bands(r, [&](int ty, int tx0, int tx1) {
+      for (int tx = tx0; tx <= tx1; ++tx) ++ws->offsets[ty * ws->tiles_x + tx + 1];
+    });
   for (int t = 0; t < ntiles; ++t) ws->offsets[t + 1] += ws->offsets[t];
   ws->ids.resize(ws->offsets[ntiles]);
-  ws->gent.resize(ws->goff[m]);
+  ws->slot.resize(ws->offsets[ntiles]);
   {
     std::vector<int64_t> cursor(ws->offsets.begin(), ws->offsets.end() - 1);
     for (int64_t r = 0; r < m; ++r) {
-      const int32_t* b = &box[4 * order[r]];
-      const int tx0 = b[0] / tile, tx1 = b[1] / tile, ty0 = b[2] / tile, ty1 = b[3] / tile;
-      int64_t e = ws->goff[r];
-      for (int ty = ty0; ty <= ty1; ++ty)
+      int64_t e = ws->ioff[order[r]];
+      bands(r, [&](int ty, int tx0, int tx1) {
         for (int tx = tx0; tx <= tx1; ++tx) {
           const int64_t pos = cursor[ty * ws->tiles_x + tx]++;
           ws->ids[pos] = r;
-          ws->gent[e++] = pos;
+          ws->slot[pos] = e++;
         }
+      });
     }
   }
-  // 3. compositing: per tile, Gaussian after Gaussian, SIMD across 8-pixel chunks of the rows of its box
+  // 5. compositing: per tile, Gaussian after Gaussian, SIMD across 8-pixel chunks of its candidate columns
   ws->Tfinal.resize(size_t(H) * W);
   ws->last.resize(size_t(H) * W);
   const Workspace<S>& w = *ws;
@@ -466,42 +715,19 @@ Workspace<S>* forward(const Inputs<S>& in, const CameraParams& cam, int H, int W
           if (active == 0) break;
         }
         const int64_t g = w.ids[j];
-        const S gx = w.mx[g], gy = w.my[g], r = w.rad[g], A = w.qa[g], B = w.qb[g], C = w.qc[g], o = w.op[g];
-        const S col0 = w.c0[g], col1 = w.c1[g], col2 = w.c2[g], depth = w.dep[g];
-        const Span sp = span(gx, gy, r, x0, y0, tw, th);
-        const double tau = alpha_tau(double(o));
-        if (tau < 0.0) continue;
+        const Splat<S> sp{w.mx[g], w.my[g], w.rad[g], w.qa[g], w.qb[g], w.qc[g], w.op[g], w.c0[g], w.c1[g], w.c2[g],
+                          w.dep[g]};
         const int32_t rank = int32_t(j + 1 - start);
-        S* Tp = T.data();
-        S *p0 = a0.data(), *p1 = a1.data(), *p2 = a2.data(), *pz = az.data();
-        int32_t *lp = last.data(), *dp = done.data();
-        for (int y = sp.ya; y < sp.yb; ++y) {
-          const S dy = S(y0 + y) + S(0.5) - gy;
-          int ca, xb;
-          if (std::fabs(dy) > r || !row_range(gx, dy, A, B, C, tau, x0, sp, ca, xb)) continue;
-          for (int cb = ca; cb < xb; cb += LANES) {
-            const int base = y * stride + cb;
-            const S* pxp = px.data() + cb;
-#pragma omp simd
-            for (int l = 0; l < LANES; ++l) {
-              const int k = base + l;
-              const S dx = pxp[l] - gx;
-              const S power = S(-0.5) * (A * dx * dx + C * dy * dy) - B * dx * dy;
-              const S oG = o * exp_neg(power);
-              const S a = oG < S(0.99) ? oG : S(0.99);
-              const bool ok = (dp[k] == 0) & (std::fabs(dx) <= r) & (oG >= S(1.0 / 255.0));  // = a >= 1/255
-              const S nT = Tp[k] * (S(1) - a);
-              const bool stop = ok & (nT < S(1e-4));
-              const bool use = ok & !stop;
-              const S wgt = use ? a * Tp[k] : S(0);
-              p0[k] += wgt * col0;
-              p1[k] += wgt * col1;
-              p2[k] += wgt * col2;
-              pz[k] += wgt * depth;
-              Tp[k] = use ? nT : Tp[k];
-              lp[k] = use ? rank : lp[k];
-              dp[k] = stop ? 1 : dp[k];
-            }
+        const int ya = std::max(w.ry0[g], y0), yb = std::min(w.ry1[g], y0 + th - 1);
+        const int32_t* xr = w.xr.data() + 2 * (w.roff[g] + ya - w.ry0[g]);
+        for (int y = ya; y <= yb; ++y, xr += 2) {
+          const int ca = std::max(xr[0], x0) - x0, cb = std::min(xr[1], x0 + tw - 1) - x0;
+          if (ca > cb) continue;
+          const S dy = S(y) + S(0.5) - sp.gy;
+          for (int c = ca; c <= cb; c += LANES) {
+            const int k = (y - y0) * stride + c;
+            composite_chunk(sp, dy, px.data() + c, T.data() + k, a0.data() + k, a1.data() + k, a2.data() + k,
+                            az.data() + k, last.data() + k, done.data() + k, rank);
           }
         }
       }
@@ -531,7 +757,7 @@ void backward(const Workspace<S>& w, const Inputs<S>& in, const CameraParams& ca
               int threads) {
   const int tile = w.tile, W = w.W, H = w.H;
   const int ntiles = w.tiles_x * w.tiles_y;
-  std::vector<S> egrad(w.ids.size() * NG);
+  std::vector<S> egrad(w.ids.size() * NG);  // per entry slot (index order, then tile order); zero when unused
 #pragma omp parallel num_threads(threads)
   {
     const int stride = padded(tile), P = stride * tile;
@@ -563,62 +789,27 @@ void backward(const Workspace<S>& w, const Inputs<S>& in, const CameraParams& ca
         max_last = std::max(max_last, last[k]);
       }
       for (int x = 0; x < stride; ++x) px[x] = S(x0 + x) + S(0.5);
-      const int64_t start = w.offsets[t], end = w.offsets[t + 1];
-      std::fill(egrad.begin() + (start + max_last) * NG, egrad.begin() + end * NG, S(0));
+      const int64_t start = w.offsets[t];
       for (int64_t j = start + max_last - 1; j >= start; --j) {
         const int64_t g = w.ids[j];
-        const S gx = w.mx[g], gy = w.my[g], r = w.rad[g], A = w.qa[g], B = w.qb[g], C = w.qc[g], o = w.op[g];
-        const S col0 = w.c0[g], col1 = w.c1[g], col2 = w.c2[g], depth = w.dep[g];
-        const Span sp = span(gx, gy, r, x0, y0, tw, th);
-        const double tau = alpha_tau(double(o));
+        const Splat<S> sp{w.mx[g], w.my[g], w.rad[g], w.qa[g], w.qb[g], w.qc[g], w.op[g], w.c0[g], w.c1[g], w.c2[g],
+                          w.dep[g]};
         const int32_t jj = int32_t(j - start);
+        const int ya = std::max(w.ry0[g], y0), yb = std::min(w.ry1[g], y0 + th - 1);
+        const int32_t* xr = w.xr.data() + 2 * (w.roff[g] + ya - w.ry0[g]);
         std::fill(acc, acc + NG * LANES, S(0));
-        S *Tp = T.data(), *q0 = r0.data(), *q1 = r1.data(), *q2 = r2.data(), *qz = rz.data();
-        const S *Tfp = Tf.data(), *gTp = gTf.data(), *gc0 = g0.data(), *gc1 = g1.data(), *gc2 = g2.data();
-        const S* gdp = gz.data();
-        const int32_t* lp = last.data();
-        for (int y = sp.ya; y < sp.yb; ++y) {
-          const S dy = S(y0 + y) + S(0.5) - gy;
-          int ca, xb;
-          if (tau < 0.0 || std::fabs(dy) > r || !row_range(gx, dy, A, B, C, tau, x0, sp, ca, xb)) continue;
-          for (int cb = ca; cb < xb; cb += LANES) {
-            const int base = y * stride + cb;
-            const S* pxp = px.data() + cb;
-#pragma omp simd
-            for (int l = 0; l < LANES; ++l) {
-              const int k = base + l;
-              const S dx = pxp[l] - gx;
-              const S power = S(-0.5) * (A * dx * dx + C * dy * dy) - B * dx * dy;
-              const S G = exp_neg(power);
-              const S oG = o * G;
-              const S a = oG < S(0.99) ? oG : S(0.99);
-              const bool ok = (jj < lp[k]) & (std::fabs(dx) <= r) & (oG >= S(1.0 / 255.0));
-              const S one_m = S(1) - a;
-              const S Tc = ok ? Tp[k] / one_m : Tp[k];  // transmittance in front of this Gaussian
-              const S wgt = ok ? a * Tc : S(0);
-              acc[5 * LANES + l] += wgt * gc0[k];
-              acc[6 * LANES + l] += wgt * gc1[k];
-              acc[7 * LANES + l] += wgt * gc2[k];
-              acc[9 * LANES + l] += wgt * gdp[k];
-              const S g_a = Tc * ((col0 - q0[k]) * gc0[k] + (col1 - q1[k]) * gc1[k] + (col2 - q2[k]) * gc2[k] +
-                                  (depth - qz[k]) * gdp[k]) - Tfp[k] / one_m * gTp[k];
-              q0[k] = ok ? a * col0 + one_m * q0[k] : q0[k];
-              q1[k] = ok ? a * col1 + one_m * q1[k] : q1[k];
-              q2[k] = ok ? a * col2 + one_m * q2[k] : q2[k];
-              qz[k] = ok ? a * depth + one_m * qz[k] : qz[k];
-              Tp[k] = Tc;
-              const S ga = (ok & (oG <= S(0.99))) ? g_a : S(0);  // clamped alpha: no gradient to o or G
-              acc[8 * LANES + l] += ga * G;
-              const S gp = ga * a;  // dL/dpower
-              acc[0 * LANES + l] += gp * (A * dx + B * dy);
-              acc[1 * LANES + l] += gp * (B * dx + C * dy);
-              acc[2 * LANES + l] += gp * S(-0.5) * dx * dx;
-              acc[3 * LANES + l] += gp * (-dx * dy);
-              acc[4 * LANES + l] += gp * S(-0.5) * dy * dy;
-            }
+        for (int y = ya; y <= yb; ++y, xr += 2) {
+          const int ca = std::max(xr[0], x0) - x0, cb = std::min(xr[1], x0 + tw - 1) - x0;
+          if (ca > cb) continue;
+          const S dy = S(y) + S(0.5) - sp.gy;
+          for (int c = ca; c <= cb; c += LANES) {
+            const int k = (y - y0) * stride + c;
+            backward_chunk(sp, dy, px.data() + c, jj, last.data() + k, T.data() + k, r0.data() + k, r1.data() + k,
+                           r2.data() + k, rz.data() + k, Tf.data() + k, gTf.data() + k, g0.data() + k,
+                           g1.data() + k, g2.data() + k, gz.data() + k, acc);
           }
         }
-        S* e = egrad.data() + j * NG;
+        S* e = egrad.data() + w.slot[j] * NG;
         for (int q = 0; q < NG; ++q) {
           S sum = S(0);
           for (int l = 0; l < LANES; ++l) sum += acc[q * LANES + l];
@@ -627,22 +818,23 @@ void backward(const Workspace<S>& w, const Inputs<S>& in, const CameraParams& ca
       }
     }
   }
-  // reduce each Gaussian's entries in tile order (fixed order: independent of the thread count), then the
-  // projection and SH backward
-  std::memset(d_means, 0, sizeof(S) * 3 * in.n);
-  std::memset(d_rot, 0, sizeof(S) * 9 * in.n);
-  std::memset(d_scales, 0, sizeof(S) * 3 * in.n);
-  std::memset(d_opac, 0, sizeof(S) * in.n);
-  std::memset(d_sh, 0, sizeof(S) * 3 * in.K * in.n);
-  const int64_t m = int64_t(w.order.size());
+  // per Gaussian, in index order (sequential reads of its inputs and entry slots): its entries summed in tile
+  // order (fixed: independent of the thread count), then the projection and SH backward; culled ones get zeros
+  const int64_t n = in.n, K3 = int64_t(3) * in.K;
 #pragma omp parallel for schedule(static) num_threads(threads)
-  for (int64_t r = 0; r < m; ++r) {
-    double gs[NG] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
-    for (int64_t e = w.goff[r]; e < w.goff[r + 1]; ++e) {
-      const S* row = egrad.data() + w.gent[e] * NG;
-      for (int q = 0; q < NG; ++q) gs[q] += double(row[q]);
+  for (int64_t i = 0; i < n; ++i) {
+    const int64_t r = w.rank_of[i];
+    std::fill(d_sh + K3 * i, d_sh + K3 * (i + 1), S(0));
+    if (r < 0) {
+      std::fill(d_means + 3 * i, d_means + 3 * i + 3, S(0));
+      std::fill(d_rot + 9 * i, d_rot + 9 * i + 9, S(0));
+      std::fill(d_scales + 3 * i, d_scales + 3 * i + 3, S(0));
+      d_opac[i] = S(0);
+      continue;
     }
-    const int64_t i = w.order[r];
+    double gs[NG] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+    for (int64_t e = w.ioff[i]; e < w.ioff[i + 1]; ++e)
+      for (int q = 0; q < NG; ++q) gs[q] += double(egrad[e * NG + q]);
     Proj p;
     project_one(in, cam, i, p);
     project_one_backward(in, cam, i, p, gs, d_means, d_rot, d_scales, d_opac, d_sh);

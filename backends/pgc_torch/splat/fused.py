@@ -1,11 +1,11 @@
 """The fused splat path: one compiled call renders world Gaussians, one computes the gradients of all five inputs.
 
-``fused.cpp`` does projection (float64 per Gaussian), SH colour, culling, binning, depth order and compositing
-(float32 SIMD across the pixels of a tile row), and their backward; :class:`FusedRasterize` wraps it as a
-single ``torch.autograd.Function``, so a fit step builds no graph of per-Gaussian torch ops. Built through
-:mod:`pgc.native` with AVX2/FMA code generation when this CPU reports both (``/proc/cpuinfo``), else the
-default flags (always with ``-fno-trapping-math``, which lets GCC vectorise the pixel loops). Build ahead of time with ``python -m pgc_torch.splat.fused``.
-"""
+``fused.cpp`` does projection (float64 per Gaussian), SH colour, culling, opacity-aware binning, depth order and
+compositing (float32 SIMD across 8-pixel chunks of a row, AVX2 intrinsics where the CPU has AVX2 and FMA), and
+their backward; :class:`FusedRasterize` wraps it as a single ``torch.autograd.Function``, so a fit step builds no
+graph of per-Gaussian torch ops. Built through :mod:`pgc.native` with AVX2/FMA code generation when this CPU
+reports both (``/proc/cpuinfo``), else the default flags (always with ``-fno-trapping-math``, which lets GCC
+vectorise the generic pixel loops). Build ahead of time with ``python -m pgc_torch.splat.fused``."""
 
 from __future__ import annotations
 
