@@ -79,8 +79,7 @@ def main(argv: list[str] | None = None) -> int:
         return _fail(args, f"unexpected {type(exc).__name__}: {exc}; this is a bug or an input PGC does not "
                            "check yet: rerun with 'pgc --debug ...' for the traceback and report it", 1)
     finally:
-        if "pgc.progress" in sys.modules:  # bars of stages a failed command left open
-            sys.modules["pgc.progress"].ProgressPrinter.close_all()
+        _close_bars()
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
         if previous_int is not None:
@@ -147,10 +146,18 @@ def _importing(frame: Any) -> bool:
     return False
 
 
+def _close_bars() -> None:
+    """Close the progress bars of stages a failed or interrupted command left open."""
+    if "pgc.progress" in sys.modules:
+        sys.modules["pgc.progress"].ProgressPrinter.close_all()
+
+
 def _interrupted_exit(argv: list[str] | None) -> int:
-    """130. As the program (``argv`` None: the ``pgc`` script), exit at once after flushing: interpreter
-    finalisation after an extension was interrupted mid-work (Mitsuba's threads) can abort the process."""
+    """130. As the program (``argv`` None: the ``pgc`` script), exit at once after closing the progress bars
+    and flushing: interpreter finalisation after an extension was interrupted mid-work (Mitsuba's threads) can
+    abort the process."""
     if argv is None:
+        _close_bars()
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(130)

@@ -280,9 +280,9 @@ def test_unknown_names_are_rejected():
     from pgc.synth.detail import get_detail
     from pgc.synth.garments import make_garment
 
-    with pytest.raises(PGCDataError, match="details: none, relief, seams"):
+    with pytest.raises(PGCDataError, match="--detail.*use one of: none, relief, seams"):
         get_detail("lace")
-    with pytest.raises(PGCDataError, match="fits: loose, resting"):
+    with pytest.raises(PGCDataError, match="--fit.*use one of: loose, resting"):
         make_garment(make_body(edge_length=0.04), "tshirt", fit="tight")
 
 

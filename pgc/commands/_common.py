@@ -113,15 +113,21 @@ def read_json_file(path: Path, what: str, fix: str) -> Any:
         raise PGCDataError(f"{path}: malformed {what} ({exc}); {fix}") from None
 
 
+def read_json_object(path: Path, fix: str) -> dict[str, Any]:
+    """A JSON object from ``path``, or a clear error naming the file (missing, malformed, not an object)."""
+    data = read_json_file(path, path.name, fix)
+    if not isinstance(data, dict):
+        raise PGCDataError(f"{path}: must be a JSON object, got {type(data).__name__}; {fix}")
+    return data
+
+
 def check_run(run: str | os.PathLike) -> dict[str, Any]:
     """The ``run.json`` of a run folder after checking its fields and files, before any work."""
     run = Path(run)
     if not run.is_dir():
         raise PGCDataError(f"{run}: not a folder; give a run folder made by 'pgc animate'")
     fix = f"re-create the run with 'pgc animate ASSET --motion M --out {run}'"
-    meta = read_json_file(run / "run.json", "run.json", fix)
-    if not isinstance(meta, dict):
-        raise PGCDataError(f"{run / 'run.json'}: must be a JSON object; {fix}")
+    meta = read_json_object(run / "run.json", fix)
     for key, kind in (("asset", str), ("frames", int), ("fps", (int, float)), ("motion", str)):
         if not isinstance(meta.get(key), kind) or isinstance(meta.get(key), bool):
             raise PGCDataError(f"{run / 'run.json'}: field '{key}' is missing or not a {getattr(kind, '__name__', 'number')}"

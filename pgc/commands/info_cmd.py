@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from pgc.commands._common import emit, read_json_file
+from pgc.commands._common import emit, read_json_object
 
 EPILOG = """\
 examples:
@@ -59,24 +59,14 @@ def run_info(folder: Path, run: dict[str, Any], frames: int) -> dict[str, Any]:
                            "simulation": {k: v for k, v in run.get("figures", {}).items() if not isinstance(v, list)}}
     render = folder / "render" / "render.json"
     if render.is_file():
-        meta = read_object(render, f"render the run again with 'pgc render {folder}'")
+        meta = read_json_object(render, f"render the run again with 'pgc render {folder}'")
         out["render"] = {k: meta.get(k) for k in ("frames", "cameras", "kernel_size", "far_source", "light")}
     metrics = folder / "metrics.json"
     if metrics.is_file():
-        m = read_object(metrics, f"evaluate the run again with 'pgc eval {folder} --gt CAPTURE'")
+        m = read_json_object(metrics, f"evaluate the run again with 'pgc eval {folder} --gt CAPTURE'")
         out["metrics"] = {k: {n: x for n, x in v.items() if n != "per_frame"} for k, v in m.items()
                           if isinstance(v, dict) and "per_frame" in v}
     return out
-
-
-def read_object(path: Path, fix: str) -> dict[str, Any]:
-    """A JSON object from ``path``, else a clear error naming the file."""
-    from pgc.errors import PGCDataError
-
-    data = read_json_file(path, path.name, fix)
-    if not isinstance(data, dict):
-        raise PGCDataError(f"{path}: must be a JSON object, got {type(data).__name__}; {fix}")
-    return data
 
 
 def _fmt(value: Any) -> str:

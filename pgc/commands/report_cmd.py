@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from pgc.commands._common import check_out_folder, emit, read_json_file
+from pgc.commands._common import check_out_folder, emit, read_json_file, read_json_object
 from pgc.errors import PGCDataError
 
 EPILOG = """\
@@ -62,10 +62,10 @@ def check_inputs(folder: Path, bench: str | None) -> None:
 
 
 def _object(path: Path, fix: str, optional: bool = False) -> None:
+    """``path`` holds a JSON object (``optional``: or is absent), else a clear error naming it and ``fix``."""
     if optional and not path.exists():
         return
-    if not isinstance(read_json_file(path, path.name, fix), dict):
-        raise PGCDataError(f"{path}: must be a JSON object; {fix}")
+    read_json_object(path, fix)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -41,7 +41,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                                    "light, body model and motions, albedo and depth per view.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("paths", nargs="+", metavar="OUT", help="output folder (or 'render-frames' and its paths)")
-    p.add_argument("--preset", default="default", help="tiny, default or large (default: default)")
+    p.add_argument("--preset", default="default", help="tiny, default, large or knit (default: default)")
     p.add_argument("--garment", default=None, help="tshirt or dress (default: the preset's)")
     p.add_argument("--fabric", default=None, help="cotton, fleece, knit, rib-knit, satin-like, lambertian "
                                                   "(default: the preset's)")

@@ -98,7 +98,8 @@ class FitSplatsSettings(Options):
     max_sh_degree: int = Field(3, ge=0, le=3)
     sh_interval: int = Field(500, ge=1, description=(
         "steps between SH degree increases at the paper's 30000 steps; scaled to the fraction of the fit"))
-    holdout_every: int = Field(8, ge=2, description="every k-th view is held out for PSNR and model choice")
+    holdout_every: int = Field(8, ge=2, description=(
+        "every k-th view is held out for PSNR and model choice (with at least 2k views; fewer: none)"))
     prune_weight: float = Field(0.5, ge=0.0, description=(
         "prune Gaussians whose summed compositing weight over all training views is below this (pixels)"))
     select_count: bool = Field(True, description=(

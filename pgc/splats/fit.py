@@ -13,9 +13,9 @@ The loop (the paper's optimisation, with the choices this project adds):
 - every ``converge_every`` steps the held-out PSNR is measured (the time-to-PSNR curve); once past
   ``converge_after`` of the schedule, the fit stops when ``converge_patience`` evaluations in a row raised the
   best held-out PSNR by less than ``converge_db``, else after ``iterations`` steps. A capture too small to hold a
-  view out (fewer than ``holdout_every`` views) is tested the same way on the training views' PSNR (a plateau of
-  the fit itself; the curve's points then carry ``psnr_train``). Nothing depends on the clock: the same inputs
-  give the same fit;
+  view out (fewer than twice ``holdout_every`` views) is tested the same way on the training views' PSNR (a
+  plateau of the fit itself; the curve's points then carry ``psnr_train``). Nothing depends on the clock: the
+  same inputs give the same fit;
 - then the model only the scene needs: prune Gaussians that contribute nothing, keep the smallest
   top-contribution subset and the lowest SH degree within ``margin_db`` of the full model on the held-out views,
   optionally drop Gaussians of back-facing faces, keep the garment's (:mod:`pgc.splats.fitplan`);
@@ -227,7 +227,7 @@ def training_view(train: Sequence[Any], order: list[int], rng: np.random.Generat
 
 
 def views_psnr(backend: FitBackend, views: Sequence[_Prepared], degree: int,
-                 keep: np.ndarray | None = None) -> float:
+               keep: np.ndarray | None = None) -> float:
     """Mean PSNR (dB, sRGB) of renders over the background against the images of ``views``."""
     if not views:
         return float("nan")

@@ -29,7 +29,7 @@ import numpy as np
 
 from pgc.errors import PGCDataError
 from pgc.synth.embed import embedded_points
-from pgc.synth.fabrics import value_noise
+from pgc.synth.fabrics import smoothstep, value_noise
 from pgc.types import Mesh
 
 
@@ -61,9 +61,15 @@ DETAILS: dict[str, DetailSpec | None] = {"none": None, "relief": DetailSpec(),
 but the knit wales: for fleece and woven fabrics)."""
 
 
+WALE_RADIUS = 0.16
+"""Radius (metres) at which the knit wales' angular spacing around the torso axis equals ``rib_period``."""
+
+
 def get_detail(name: str) -> DetailSpec | None:
+    """The detail level ``name`` of :data:`DETAILS` (None for 'none'), else a clear error listing them."""
     if name not in DETAILS:
-        raise PGCDataError(f"unknown detail '{name}'; details: {', '.join(DETAILS)}")
+        raise PGCDataError(f"unknown detail '{name}' (pgc synth --detail, or a preset's detail); use one of: "
+                          f"{', '.join(DETAILS)}")
     return DETAILS[name]
 
 
@@ -151,11 +157,6 @@ class DetailSurface:
 # ------------------------------------------------------------------------------------------ height field
 
 
-def _smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
-    t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
-    return t * t * (3 - 2 * t)
-
-
 def _ribs(coordinate: np.ndarray, period: float) -> np.ndarray:
     """Rounded ribs in [0, 1]: 1 on the crest of each wale, 0 in the purl valley."""
     return np.sqrt(0.5 + 0.5 * np.cos(2 * np.pi * coordinate / period))
@@ -193,8 +194,8 @@ class DetailField:
             along.append(s / period)
         self._edge_tree = cKDTree(np.concatenate(points)) if points else None
         self._edge_along = np.concatenate(along) if along else np.zeros(0)
-        circumference = 2 * np.pi * 0.16
-        self._rib_period = circumference / round(circumference / spec.rib_period)
+        circumference = 2 * np.pi * WALE_RADIUS
+        self._rib_period = circumference / max(round(circumference / spec.rib_period), 1)  # whole wales around
 
     def height(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
         """(N,) outward offset (metres, >= 0) at rest ``points`` (N, 3) with unit rest ``normals`` (N, 3)."""
@@ -202,14 +203,14 @@ class DetailField:
         x, y, z = p[:, 0], p[:, 1], p[:, 2]
         # folds: sparse horizontal ridges
         cell = np.array([s.fold_cell[0], s.fold_cell[1], s.fold_cell[0]])
-        folds = s.fold_height * _smoothstep(0.5, 0.85, value_noise(p / cell, 1.0, self.seed + 7))
+        folds = s.fold_height * smoothstep(0.5, 0.85, value_noise(p / cell, 1.0, self.seed + 7))
         # knit wales around the torso axis
-        angle = np.arctan2(x, z - self.z0) * 0.16
+        angle = np.arctan2(x, z - self.z0) * WALE_RADIUS  # arc length (m) around the torso axis
         ribs = s.rib_height * _ribs(angle, self._rib_period)
         # ribbed bands along the edges
         if self._edge_tree is not None:
             dist, idx = self._edge_tree.query(p)
-            band = 1.0 - _smoothstep(s.band_width - 0.0015, s.band_width, dist)
+            band = 1.0 - smoothstep(s.band_width - 0.0015, s.band_width, dist)
             band_relief = s.band_height + s.band_rib_height * _ribs(self._edge_along[idx], 1.0)
             relief = ribs * (1 - band) + band_relief * band
         else:
@@ -221,7 +222,7 @@ class DetailField:
         x0, y0, x1, y1 = self.pocket
         inside = np.minimum(np.minimum(x - x0, x1 - x), y - y0)  # metres from the stitched edges
         edge = np.minimum(inside, y1 - y)  # metres from any edge
-        plate = _smoothstep(0.0, 0.002, edge) * (normals[:, 2] > 0.35) * (z > self.z0)
+        plate = smoothstep(0.0, 0.002, edge) * (normals[:, 2] > 0.35) * (z > self.z0)
         bulge = np.sin(np.pi * np.clip((x - x0) / (x1 - x0), 0, 1)) * np.sin(np.pi * np.clip((y - y0) / (y1 - y0),
                                                                                               0, 1))
         piping = np.exp(-(((edge - 0.003) / 0.0015) ** 2))  # a rolled edge all round, the opening included
@@ -239,11 +240,7 @@ def make_detail(garment: Mesh, spec: DetailSpec, seed: int) -> tuple[DetailSurfa
     level = int(max(1, np.ceil(mean_edge / spec.edge)))
     field = DetailField(garment, spec, seed)
     surface = DetailSurface(level, np.zeros(0), garment.faces, garment.uv, garment.face_uv)
-    rest = embedded_points(garment.vertices, garment.faces, surface.face, surface.bary)
-    vn = garment.vertex_normals()
-    normals = np.einsum("nk,nkd->nd", surface.bary, vn[garment.faces[surface.face]])
-    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-20)
-    surface.offset = field.height(rest, normals).astype(np.float32)
+    surface.offset = root_offsets(field, garment, surface.face, surface.bary)
     return surface, field
 
 

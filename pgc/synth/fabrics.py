@@ -87,7 +87,8 @@ def texel_positions(mesh: Mesh, size: int) -> tuple[np.ndarray, np.ndarray]:
     return geom.position[ny, nx], covered
 
 
-def _smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
+def smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
+    """0 below ``e0``, 1 above ``e1``, the cubic 3t^2 - 2t^3 of t = (x - e0) / (e1 - e0) between."""
     t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
     return t * t * (3 - 2 * t)
 
@@ -138,18 +139,18 @@ def base_color(fabric: Fabric, positions: np.ndarray, texel_size: float, seed: i
     kind = fabric.pattern.split("+")[0]
     if kind == "stripes":
         s = np.abs(np.mod(y / 0.05, 1.0) - 0.5) * 0.05  # distance to the stripe centre line, metres
-        t = _smoothstep(0.0125 - aa, 0.0125 + aa, s)
+        t = smoothstep(0.0125 - aa, 0.0125 + aa, s)
         rgb = c[0] * (1 - t[..., None]) + c[1] * t[..., None]
     elif kind == "checks":
         angle = np.arctan2(x, z) * 0.16  # around the body, metres at ~16 cm radius
-        sx = _smoothstep(-aa, aa, np.sin(2 * np.pi * angle / 0.06) * 0.01)
-        sy = _smoothstep(-aa, aa, np.sin(2 * np.pi * y / 0.06) * 0.01)
+        sx = smoothstep(-aa, aa, np.sin(2 * np.pi * angle / 0.06) * 0.01)
+        sy = smoothstep(-aa, aa, np.sin(2 * np.pi * y / 0.06) * 0.01)
         t = (0.5 * sx + 0.5 * sy)[..., None]
         rgb = c[0] * (1 - t) + c[1] * t
     elif kind == "knit":
         angle = np.arctan2(x, z) * 0.16
         chevron = np.mod((y + np.abs(np.mod(angle / 0.03, 1.0) - 0.5) * 0.03) / 0.04, 1.0)
-        t = _smoothstep(0.5 - aa / 0.04, 0.5 + aa / 0.04, np.abs(chevron - 0.5) * 2)[..., None]
+        t = smoothstep(0.5 - aa / 0.04, 0.5 + aa / 0.04, np.abs(chevron - 0.5) * 2)[..., None]
         rgb = c[0] * (1 - t) + c[1] * t
         rgb *= (0.85 + 0.3 * value_noise(positions, 0.004, seed))[..., None]
     elif kind == "heather":

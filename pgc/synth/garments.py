@@ -4,7 +4,8 @@ A garment is the zero level of the body's own capsules grown by the looseness (t
 a flared frustum for a skirt), smooth-unioned, meshed, then cut exactly along the hem, the neckline and the
 sleeve ends (:func:`pgc.synth.implicit.clip_mesh`), remeshed to roughly uniform triangles and unwrapped with
 xatlas. Because every kept body part is grown by at least the looseness, the shell never intersects the
-body in the A-pose.
+body in the A-pose. The 'resting' fit offsets the body's own surface instead, by :data:`RESTING_TOP_GAP` over
+the shoulders and chest growing to the looseness at the waist, so the garment hangs from the shoulders.
 """
 
 from __future__ import annotations
@@ -102,14 +103,15 @@ def make_garment(body: BodyModel, kind: str, looseness: float = 0.03, resolution
     """A garment shell around ``body`` in the A-pose.
 
     kind: 'tshirt' (loose, short sleeves) or 'dress' (cap sleeves, flared skirt to the knees);
-    looseness: clearance from the body in metres (>= 0.01; sleeves get 1.3x);
-    resolution: target edge length in metres (0.02 gives about 4k vertices for the tshirt);
+    looseness: clearance from the body in metres (>= 0.01; loose fit: sleeves get 1.3x; resting fit: at the waist);
+    resolution: target edge length in metres (0.02 gives about 2.6k vertices for the loose tshirt, 2.0k
+    resting);
     sleeve_length: sleeve length as a fraction of the upper arm (tshirt; the dress uses a quarter of it);
     length: hem height scale (1 = hip for the tshirt, just above the knee for the dress; < 1 is longer);
     fit: 'loose' (the body's torso, upper-arm and thigh capsules grown by the looseness and blended wide:
-    the shell floats 1.6-2.8 cm off the body) or 'resting' (the body's own surface offset by
-    :data:`RESTING_TOP_GAP` over the shoulders and chest, growing to ``looseness`` at the waist: the garment
-    hangs from the shoulders).
+    at 3 cm looseness the tshirt's vertices lie 2.4 cm off the body at least, 4.8 cm in the median) or
+    'resting' (the body's own surface offset by :data:`RESTING_TOP_GAP` over the shoulders and chest,
+    growing to ``looseness`` at the waist: the garment hangs from the shoulders).
     Returns a :class:`Mesh` with UVs (xatlas), face labels 2, name ``kind``.
     """
     if kind not in GARMENTS:
@@ -121,7 +123,8 @@ def make_garment(body: BodyModel, kind: str, looseness: float = 0.03, resolution
     if not 0.1 <= sleeve_length <= 0.9 or not 0.7 <= length <= 1.2:
         raise PGCDataError("make_garment: sleeve_length must be in [0.1, 0.9] and length in [0.7, 1.2]")
     if fit not in FITS:
-        raise PGCDataError(f"make_garment: unknown fit '{fit}'; fits: {', '.join(FITS)}")
+        raise PGCDataError(f"unknown garment fit '{fit}' (pgc synth --fit, or a preset's fit); use one of: "
+                          f"{', '.join(FITS)}")
     v, f, uv, face_uv = _build(body.shape, kind, float(looseness), float(resolution), float(sleeve_length),
                                float(length), fit)
     return Mesh(v.copy(), f.copy(), uv.copy(), face_uv.copy(), np.full(len(f), 2, np.int32), name=kind)

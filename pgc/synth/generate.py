@@ -50,8 +50,9 @@ class SynthPreset:
     """'body': the whole body fills the views; 'garment': the same dome cameras zoom onto the garment (its
     bounding sphere times ``GARMENT_FRAME_MARGIN``, room for the motions), so its fabric takes the pixels."""
     detail: str = "none"
-    """Near-field detail (:data:`pgc.synth.detail.DETAILS`): 'none' or 'relief' (knit ribs, ribbed bands,
-    seams, a patch pocket, folds as real geometry embedded in the garment)."""
+    """Near-field detail (:data:`pgc.synth.detail.DETAILS`): 'none', 'relief' (knit ribs, ribbed bands,
+    seams, a patch pocket, folds as real geometry embedded in the garment) or 'seams' (the same without the
+    knit ribs)."""
     fit: str = "loose"
     """Garment fit (:data:`pgc.synth.garments.FITS`): 'loose' or 'resting' (hangs from the shoulders)."""
     looseness: float = 0.03
