@@ -46,6 +46,11 @@ def _write(tmp_path: Path, text: str) -> Path:
     ('motions = ["goalpost"]', 'motions = ["moonwalk"]', "'moonwalk' is neither a built-in motion"),
     ('rows = ["configuration"]', 'rows = ["colour"]', "[table].rows: unknown field 'colour'"),
     ('[table]', '[tables]', "tables: unknown key"),
+    ('preset = "tiny"', 'preset = "knit"\ndetail = "lace"', "[scenes.a].detail: unknown detail 'lace'; choose from none"),
+    ('preset = "tiny"', 'fit = ["resting", "tight"]', "[scenes.a].fit: unknown fit 'tight'; choose from loose"),
+    ('preset = "tiny"', 'looseness = 0.5', "[scenes.a].looseness: 0.5: give the garment's clearance"),
+    ('preset = "tiny"', 'looseness = "wide"', "[scenes.a].looseness: 'wide': give"),
+    ('preset = "tiny"', 'looseness = true', "[scenes.a].looseness: True: give"),
 ])
 def test_bad_sweep_file_fails_before_any_work_naming_file_and_key(tmp_path, old, new, message):
     from pgc.sweep.runner import run_sweep
@@ -73,6 +78,38 @@ def test_scene_lists_expand_into_named_scenes(tmp_path):
     path = _write(tmp_path, GOOD.replace('preset = "tiny"', 'preset = "tiny"\nseed = [0, 3]\nfabric = ["knit", "fleece"]'))
     names = [s.name for s in load_sweep(path).scenes]
     assert names == ["a-seed0-knit", "a-seed0-fleece", "a-seed3-knit", "a-seed3-fleece"]
+
+
+def test_knit_scene_keys_expand_and_leave_other_scenes_unchanged(tmp_path):
+    from pgc.sweep.spec import load_sweep
+    from pgc.sweep.work import scene_key
+
+    text = GOOD + '[scenes.k]\npreset = "knit"\ndetail = ["relief", "seams"]\nfit = "resting"\nlooseness = [0.012, 0.03]\n'
+    scenes = load_sweep(_write(tmp_path, text)).scenes
+    assert [s.name for s in scenes] == ["a", "k-relief-looseness0.012", "k-relief-looseness0.03",
+                                        "k-seams-looseness0.012", "k-seams-looseness0.03"]
+    plain = {"preset": "tiny", "garment": None, "fabric": None, "seed": 0, "framing": None}
+    assert scenes[0].synth == plain  # no new keys: a sweep without them keeps its scene keys and captures
+    assert scenes[2].synth == plain | {"preset": "knit", "detail": "relief", "fit": "resting", "looseness": 0.03}
+    assert len({scene_key(s) for s in scenes}) == 5
+
+
+def test_make_capture_passes_the_scene_spec_as_pgc_synth_does(tmp_path, monkeypatch):
+    import pgc.synth.generate as generate_mod
+    from pgc.sweep.work import make_capture
+    from pgc.synth.generate import get_preset
+
+    calls = []
+    monkeypatch.setattr(generate_mod, "generate", lambda folder, preset, **kw: calls.append((preset, kw)))
+    spec = {"preset": "knit", "garment": None, "fabric": "fleece", "seed": 2, "framing": "body", "detail": "seams",
+            "fit": "loose", "looseness": 0.03}
+    make_capture(spec, str(tmp_path / "captures" / "k-abc"), str(tmp_path))
+    make_capture(spec | {"framing": None, "detail": None}, str(tmp_path / "captures" / "k-def"), str(tmp_path))
+    # `pgc synth OUT --preset knit --fabric fleece --seed 2 --framing body --detail seams --fit loose --looseness 0.03`
+    assert calls[0] == (get_preset("knit", framing="body"), {"garment": None, "fabric": "fleece", "seed": 2,
+                                                            "looseness": 0.03, "detail": "seams", "fit": "loose"})
+    assert calls[1][0] == get_preset("knit") and calls[1][0].framing == "garment" and calls[1][1]["detail"] is None
+    assert (tmp_path / "results" / "capture-abc.json").is_file()
 
 
 def _add(a: int, b: int, *deps: int) -> int:

@@ -21,8 +21,12 @@ from pgc.errors import PGCConfigError
 STEPS = ("reconstruct", "animate", "render", "eval")
 """The steps in pipeline order; a sweep runs a prefix of them."""
 SWEEP_KEYS = {"name", "base", "config", "steps", "motions"}
-SYNTH_KEYS = {"preset", "garment", "fabric", "seed", "framing"}
+SYNTH_KEYS = {"preset", "garment", "fabric", "seed", "framing", "detail", "fit", "looseness"}
 SCENE_KEYS = SYNTH_KEYS | {"capture"}
+NUMERIC_KEYS = ("seed", "looseness")
+"""Synthetic-scene keys whose values name a varied scene with the key in front (``-seed3``, ``-looseness0.03``)."""
+LOOSENESS = (0.01, 0.15)
+"""The garment generator's range of clearance from the body, metres (``pgc synth --looseness``)."""
 TABLE_KEYS = {"rows", "columns", "metrics", "where"}
 TOP_KEYS = {"sweep", "scenes", "configurations", "table"}
 RECORD_FIELDS = ("scene", "configuration", "motion", "variant", "preset", "garment", "fabric", "seed", "framing")
@@ -33,7 +37,8 @@ RECORD_FIELDS = ("scene", "configuration", "motion", "variant", "preset", "garme
 class Scene:
     name: str
     synth: dict[str, Any] | None
-    """preset, garment, fabric, seed, framing of a synthetic scene (None for a capture folder)."""
+    """preset, garment, fabric, seed, framing of a synthetic scene, and detail, fit, looseness where the sweep
+    file gives them (None for a capture folder)."""
     capture: Path | None = None
 
 
@@ -169,17 +174,20 @@ def _check_motions(path: Path, motions: list[str], root: Path) -> None:
 
 
 def _scenes(path: Path, table: dict[str, Any]) -> list[Scene]:
+    from pgc.synth.detail import DETAILS
     from pgc.synth.fabrics import FABRICS
-    from pgc.synth.garments import GARMENTS
+    from pgc.synth.garments import FITS, GARMENTS
     from pgc.synth.generate import PRESETS
 
-    choices = {"preset": tuple(PRESETS), "garment": GARMENTS, "fabric": tuple(FABRICS), "framing": ("body", "garment")}
+    choices = {"preset": tuple(PRESETS), "garment": GARMENTS, "fabric": tuple(FABRICS), "framing": ("body", "garment"),
+               "detail": tuple(DETAILS), "fit": FITS}
     out = []
     for name, spec in table.items():
         where = f"[scenes.{name}]"
         _check_name(path, where, name)
         if not isinstance(spec, dict):
-            raise _fail(path, where, "must be a table (preset, garment, fabric, seed, framing; or capture)")
+            raise _fail(path, where, "must be a table (preset, garment, fabric, seed, framing, detail, fit, "
+                                     "looseness; or capture)")
         _unknown(path, where, spec, SCENE_KEYS)
         if "capture" in spec:
             if set(spec) & SYNTH_KEYS:
@@ -197,13 +205,20 @@ def _scenes(path: Path, table: dict[str, Any]) -> list[Scene]:
             for v in values:
                 if key == "seed" and (not isinstance(v, int) or isinstance(v, bool) or v < 0):
                     raise _fail(path, f"{where}.seed", f"{v!r}: give a non-negative integer (or a list of them)")
-                if key != "seed" and v not in choices[key]:
+                if key == "looseness" and (not isinstance(v, (int, float)) or isinstance(v, bool)
+                                           or not LOOSENESS[0] <= v <= LOOSENESS[1]):
+                    raise _fail(path, f"{where}.looseness", f"{v!r}: give the garment's clearance from the body in "
+                                                            f"metres, in [{LOOSENESS[0]}, {LOOSENESS[1]}] (or a "
+                                                            "list of them)")
+                if key in choices and v not in choices[key]:
                     raise _fail(path, f"{where}.{key}", f"unknown {key} {v!r}; choose from {', '.join(choices[key])}")
         varying = [k for k, v in lists.items() if len(v) > 1]
         for combo in itertools.product(*lists.values()):
             values = dict(zip(lists, combo))
+            # detail, fit and looseness enter the spec only when given, so the scene keys of sweeps without them
+            # (and their cached captures) stay as they were
             synth = {"preset": "tiny", "garment": None, "fabric": None, "seed": 0, "framing": None} | values
-            suffix = "".join(f"-{k}{values[k]}" if k == "seed" else f"-{values[k]}" for k in varying)
+            suffix = "".join(f"-{k}{values[k]}" if k in NUMERIC_KEYS else f"-{values[k]}" for k in varying)
             out.append(Scene(name + suffix, synth))
     return out
 

@@ -144,16 +144,15 @@ def seed_from(donor: str | None, folder: Path) -> bool:
 
 
 def make_capture(synth: dict[str, Any], folder: str, out: str, *deps: Any) -> dict[str, Any]:
-    """Generate the synthetic capture of a scene spec (``preset``, ``garment``, ``fabric``, ``seed``, ``framing``)."""
-    from dataclasses import replace
-
+    """Generate the synthetic capture of a scene spec (``preset``, ``garment``, ``fabric``, ``seed``, ``framing``,
+    and ``detail``, ``fit``, ``looseness`` where given; a missing or None value keeps the preset's), as
+    ``pgc synth`` does with the same options."""
     from pgc.synth.generate import generate, get_preset
 
     start = time.perf_counter()
-    preset = get_preset(synth["preset"])
-    if synth.get("framing"):
-        preset = replace(preset, framing=synth["framing"])
-    generate(folder, preset, garment=synth.get("garment"), fabric=synth.get("fabric"), seed=synth["seed"])
+    preset = get_preset(synth["preset"], framing=synth.get("framing"))
+    generate(folder, preset, garment=synth.get("garment"), fabric=synth.get("fabric"), seed=synth["seed"],
+             looseness=synth.get("looseness"), detail=synth.get("detail"), fit=synth.get("fit"))
     key = f"capture-{Path(folder).name.rsplit('-', 1)[1]}"
     return _finish(out, key, {"capture": folder, "seconds": time.perf_counter() - start})
 
