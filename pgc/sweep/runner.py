@@ -8,7 +8,7 @@ from typing import Any
 
 from pgc.events import Reporter
 from pgc.sweep.engine import run_tasks
-from pgc.sweep.spec import Sweep, load_sweep
+from pgc.sweep.spec import SCENE_RECORD_FIELDS, Sweep, load_sweep
 from pgc.sweep.work import Unit, plan
 
 
@@ -19,7 +19,7 @@ def records_of(sweep: Sweep, units: list[Unit], results: dict[str, Any], failed:
     for u in units:
         s = u.scene.synth or {}
         base = {"sweep": sweep.name, "scene": u.scene.name, "configuration": u.configuration.name, "motion": u.motion,
-                "variant": None, **{k: s.get(k) for k in ("preset", "garment", "fabric", "seed", "framing")},
+                "variant": None, **{k: s.get(k) for k in SCENE_RECORD_FIELDS},
                 "capture": u.capture}
         bad = next((failed[k] for k in (u.asset_task, u.run_task) if k in failed), None)
         if bad is not None:

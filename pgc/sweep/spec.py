@@ -29,7 +29,9 @@ LOOSENESS = (0.01, 0.15)
 """The garment generator's range of clearance from the body, metres (``pgc synth --looseness``)."""
 TABLE_KEYS = {"rows", "columns", "metrics", "where"}
 TOP_KEYS = {"sweep", "scenes", "configurations", "table"}
-RECORD_FIELDS = ("scene", "configuration", "motion", "variant", "preset", "garment", "fabric", "seed", "framing")
+SCENE_RECORD_FIELDS = ("preset", "garment", "fabric", "seed", "framing", "detail", "fit", "looseness")
+"""A synthetic scene's keys as every record carries them (None where the scene left one to its preset)."""
+RECORD_FIELDS = ("scene", "configuration", "motion", "variant", *SCENE_RECORD_FIELDS)
 """Record fields a table may group or filter by."""
 
 
