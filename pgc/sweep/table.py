@@ -4,7 +4,8 @@ A record is one (scene, configuration, motion, variant) after ``eval``, or one (
 sweep stops earlier::
 
     {"sweep", "scene", "configuration", "motion", "variant", "preset", "garment", "fabric", "seed", "framing",
-     "detail", "fit", "looseness", "capture", "brdf", "metrics": {name: value}, "figures": {...}, "seconds": {step: s}, "asset", "run"}
+     "detail", "fit", "looseness", "capture", "brdf", "metrics": {name: value}, "figures": {...},
+     "seconds": {step: s}, "asset", "run"}
 
 ``seconds`` are the wall-clock seconds of the tasks that computed the record's asset and run (shared work
 appears in every record that uses it; a folder seeded from another configuration's caches took only the
