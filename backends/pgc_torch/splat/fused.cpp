@@ -358,6 +358,28 @@ struct Splat {
   S gx, gy, r, A, B, C, o, col0, col1, col2, depth;
 };
 
+// Gaussian g of the workspace as a Splat.
+template <typename S>
+inline Splat<S> splat_of(const Workspace<S>& w, int64_t g) {
+  return {w.mx[g], w.my[g], w.rad[g], w.qa[g], w.qb[g], w.qc[g], w.op[g], w.c0[g], w.c1[g], w.c2[g], w.dep[g]};
+}
+
+// Calls chunk(dy, c, k) for every LANES-pixel chunk of Gaussian g's candidate columns (its per-row spans) inside
+// the tile at (x0, y0) of tw x th pixels, row stride `stride`: dy is the row's offset from the mean, c the chunk's
+// first column in the tile, k its index in the tile buffers. The forward and the backward walk the same chunks.
+template <typename S, typename F>
+inline void for_each_chunk(const Workspace<S>& w, int64_t g, S gy, int x0, int y0, int tw, int th, int stride,
+                           F&& chunk) {
+  const int ya = std::max(w.ry0[g], y0), yb = std::min(w.ry1[g], y0 + th - 1);
+  const int32_t* xr = w.xr.data() + 2 * (w.roff[g] + ya - w.ry0[g]);
+  for (int y = ya; y <= yb; ++y, xr += 2) {
+    const int ca = std::max(xr[0], x0) - x0, cb = std::min(xr[1], x0 + tw - 1) - x0;
+    if (ca > cb) continue;
+    const S dy = S(y) + S(0.5) - gy;
+    for (int c = ca; c <= cb; c += LANES) chunk(dy, c, (y - y0) * stride + c);
+  }
+}
+
 // Forward of one chunk of LANES pixels of a row (offset dy from the mean; px: pixel centre x; the other pointers
 // at the chunk's first pixel): alpha, the exact footprint test, front-to-back compositing, early stop.
 template <typename S>
@@ -715,21 +737,12 @@ Workspace<S>* forward(const Inputs<S>& in, const CameraParams& cam, int H, int W
           if (active == 0) break;
         }
         const int64_t g = w.ids[j];
-        const Splat<S> sp{w.mx[g], w.my[g], w.rad[g], w.qa[g], w.qb[g], w.qc[g], w.op[g], w.c0[g], w.c1[g], w.c2[g],
-                          w.dep[g]};
+        const Splat<S> sp = splat_of(w, g);
         const int32_t rank = int32_t(j + 1 - start);
-        const int ya = std::max(w.ry0[g], y0), yb = std::min(w.ry1[g], y0 + th - 1);
-        const int32_t* xr = w.xr.data() + 2 * (w.roff[g] + ya - w.ry0[g]);
-        for (int y = ya; y <= yb; ++y, xr += 2) {
-          const int ca = std::max(xr[0], x0) - x0, cb = std::min(xr[1], x0 + tw - 1) - x0;
-          if (ca > cb) continue;
-          const S dy = S(y) + S(0.5) - sp.gy;
-          for (int c = ca; c <= cb; c += LANES) {
-            const int k = (y - y0) * stride + c;
-            composite_chunk(sp, dy, px.data() + c, T.data() + k, a0.data() + k, a1.data() + k, a2.data() + k,
-                            az.data() + k, last.data() + k, done.data() + k, rank);
-          }
-        }
+        for_each_chunk(w, g, sp.gy, x0, y0, tw, th, stride, [&](S dy, int c, int k) {
+          composite_chunk(sp, dy, px.data() + c, T.data() + k, a0.data() + k, a1.data() + k, a2.data() + k,
+                          az.data() + k, last.data() + k, done.data() + k, rank);
+        });
       }
       for (int y = 0; y < th; ++y) {
         for (int x = 0; x < tw; ++x) {
@@ -792,23 +805,14 @@ void backward(const Workspace<S>& w, const Inputs<S>& in, const CameraParams& ca
       const int64_t start = w.offsets[t];
       for (int64_t j = start + max_last - 1; j >= start; --j) {
         const int64_t g = w.ids[j];
-        const Splat<S> sp{w.mx[g], w.my[g], w.rad[g], w.qa[g], w.qb[g], w.qc[g], w.op[g], w.c0[g], w.c1[g], w.c2[g],
-                          w.dep[g]};
+        const Splat<S> sp = splat_of(w, g);
         const int32_t jj = int32_t(j - start);
-        const int ya = std::max(w.ry0[g], y0), yb = std::min(w.ry1[g], y0 + th - 1);
-        const int32_t* xr = w.xr.data() + 2 * (w.roff[g] + ya - w.ry0[g]);
         std::fill(acc, acc + NG * LANES, S(0));
-        for (int y = ya; y <= yb; ++y, xr += 2) {
-          const int ca = std::max(xr[0], x0) - x0, cb = std::min(xr[1], x0 + tw - 1) - x0;
-          if (ca > cb) continue;
-          const S dy = S(y) + S(0.5) - sp.gy;
-          for (int c = ca; c <= cb; c += LANES) {
-            const int k = (y - y0) * stride + c;
-            backward_chunk(sp, dy, px.data() + c, jj, last.data() + k, T.data() + k, r0.data() + k, r1.data() + k,
-                           r2.data() + k, rz.data() + k, Tf.data() + k, gTf.data() + k, g0.data() + k,
-                           g1.data() + k, g2.data() + k, gz.data() + k, acc);
-          }
-        }
+        for_each_chunk(w, g, sp.gy, x0, y0, tw, th, stride, [&](S dy, int c, int k) {
+          backward_chunk(sp, dy, px.data() + c, jj, last.data() + k, T.data() + k, r0.data() + k, r1.data() + k,
+                         r2.data() + k, rz.data() + k, Tf.data() + k, gTf.data() + k, g0.data() + k, g1.data() + k,
+                         g2.data() + k, gz.data() + k, acc);
+        });
         S* e = egrad.data() + w.slot[j] * NG;
         for (int q = 0; q < NG; ++q) {
           S sum = S(0);
