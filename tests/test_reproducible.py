@@ -94,9 +94,10 @@ def test_poisson_surface_is_identical_from_call_to_call():
         assert v.tobytes() == meshes[0][0].tobytes() and f.tobytes() == meshes[0][1].tobytes()
 
 
-def test_material_fit_is_identical_whatever_the_jit_thread_count():
-    """The fit's gradients are summed over image blocks run on Dr.Jit's threads; the fitted material and light
-    are the same bytes with a pool of 1 or 2 threads, and from one fit to the next."""
+def test_material_fit_is_identical_whatever_the_thread_count(monkeypatch):
+    """Each shard's gradient is summed on one Dr.Jit thread and the shards in a fixed order: the fitted
+    material and light are the same bytes with the shards rendered one after the other in this process (one
+    core allotted) or in two processes (two cores), whatever Dr.Jit's pool size, and from one fit to the next."""
     pytest.importorskip("mitsuba")
     from test_material_fit import FAST, synthetic_capture
 
@@ -116,6 +117,7 @@ def test_material_fit_is_identical_whatever_the_jit_thread_count():
     try:
         for threads in (2, 1, 2):
             dr.set_thread_count(threads)
+            monkeypatch.setenv("OMP_NUM_THREADS", str(threads))
             fit = renderer.fit(capture, folded_sheet(n=16), Material("pgc-sheen", {}, texture), settings)
             fits.append((fit.light.radiance.tobytes(), repr(sorted(fit.material.params.items()))))
     finally:

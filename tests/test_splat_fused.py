@@ -186,8 +186,9 @@ def test_fused_cpp_and_torch_agree(seed):
 
 
 def test_thread_count_changes_no_byte_of_images_or_gradients():
-    world, cam = _scene(300, 4), _camera(48, 40)
-    weights = [torch.tensor(x, dtype=torch.float32) for x in _weights(40, 48, 9)]
+    # 128 x 112 px, 2000 Gaussians: large enough that the kernel starts all 3 threads (one per 1024 pixels)
+    world, cam = _scene(2000, 4), _camera(128, 112)
+    weights = [torch.tensor(x, dtype=torch.float32) for x in _weights(112, 128, 9)]
     outputs = []
     for threads in (1, 2, 3):
         params = _params(world, torch.float32)

@@ -6,7 +6,10 @@ step; one lr moves every parameter the same fraction of its range: Disney's shee
 unscaled it travelled 5x slower than the roughness it trades off against) and on the log of the light
 radiance (a step is a relative change, so lr 0.01 suits any light level). Each step renders at 4 spp one
 film of at most ``views_per_step`` views of one image size tiled side by side (the films cycle; Adam's
-moment averages span them) and minimises the mean squared error over its interior garment pixels.
+moment averages span them) and minimises the mean squared error over its interior garment pixels. A film's
+views are dealt into ``shards`` sub-films rendered on one Dr.Jit thread each, in parallel processes when the
+process has the cores, their gradients summed in a fixed order (:mod:`pgc_mitsuba.shards`): the fit is the
+same bytes whatever the thread count.
 
 Stopping: when the mean loss of the last ``patience`` steps is not ``min_improvement`` (relative) below
 the mean of the ``patience`` steps before (window means: the 4-spp loss is noisy, and an exponential
@@ -27,15 +30,17 @@ from typing import Any, Iterator
 import numpy as np
 
 from pgc.brdfs.fitdata import FitView, prepare_views, psnr_from_mse, split_occluders
+from pgc.cores import allotted_cores
 from pgc.brdfs.parameters import PARAMETERS
 from pgc.errors import PGCDataError
 from pgc.events import Reporter
 from pgc.roles.pbr_renderer import MaterialFitSettings
 from pgc.roles.pbr_renderer import MaterialFit
+from pgc.splats.fit import adam_update
 from pgc.types import Capture, Light, Material, Mesh
 from pgc_mitsuba.runtime import mitsuba
 from pgc_mitsuba.scene import scene_dict
-from pgc_mitsuba.sensors import pinhole_sensor
+from pgc_mitsuba.shards import SceneSpec, ShardFilm, ShardPool, split_film
 
 
 def resolve_settings(settings: Any) -> MaterialFitSettings:
@@ -65,7 +70,8 @@ def fit_material(renderer: Any, capture: Capture, mesh: Mesh, material: Material
 def one_jit_thread() -> Iterator[None]:
     """Run Dr.Jit's CPU kernels on one thread, restoring its pool afterwards. The gradients of the scene
     parameters are accumulated by atomic adds from every thread in a racy order, so with more than one thread
-    a fit differs from run to run (and with the thread count); one thread gives the same fit every time."""
+    a render's gradient differs from run to run (and with the thread count); the fit's cores are used by
+    shards in separate processes instead (:mod:`pgc_mitsuba.shards`)."""
     mitsuba()
     import drjit as dr
 
@@ -77,74 +83,80 @@ def one_jit_thread() -> Iterator[None]:
         dr.set_thread_count(previous)
 
 
-def _find(params: Any, suffix: str) -> str:
-    keys = [k for k in params.keys() if k.endswith(suffix)]
-    if len(keys) != 1:
-        raise RuntimeError(f"expected one scene parameter ending in '{suffix}', found {keys}")
-    return keys[0]
+def _find(keys: list[str], suffix: str) -> str:
+    found = [k for k in keys if k.endswith(suffix)]
+    if len(found) != 1:
+        raise RuntimeError(f"expected one scene parameter ending in '{suffix}', found {found}")
+    return found[0]
 
 
-def _optimise(renderer: Any, fit_views: list[FitView], capture: Capture, mesh: Mesh, material: Material,
-              settings: MaterialFitSettings, reporter: Reporter) -> MaterialFit:
-    mi = mitsuba()
-    import drjit as dr
-
-    start_time = time.perf_counter()
-    garment, occluder = split_occluders(mesh, tuple(capture.garment_label_ids))
-    init_light = Light(np.ones(3))
-    integrator = {"type": "prb", "max_depth": settings.max_depth, "hide_emitters": True}
-    scene = mi.load_dict(scene_dict(garment, material, init_light, integrator, occluder,
-                                    renderer.options.occluder_albedo, renderer.options.smooth_normals))
-    params = mi.traverse(scene)
-    bounds = {}
-    opt = mi.ad.Adam(lr=settings.lr)
-    for p in PARAMETERS[material.brdf]:
-        key = _find(params, f"bsdf.{p.name}")
-        bounds[key] = (p.lower, p.upper, p.name)
-        opt[key] = (params[key] - p.lower) / (p.upper - p.lower)
-    light_key = _find(params, "light.radiance.value")
-    opt["log_radiance"] = mi.Color3f(0.0, 0.0, 0.0)  # radiance 1: the paper's initial value
-
-    def apply() -> None:
-        for key, (lo, hi, _) in bounds.items():
-            opt[key] = dr.clip(opt[key], 0.0, 1.0)
-            params[key] = lo + (hi - lo) * opt[key]
-        params[light_key] = dr.exp(opt["log_radiance"])
-        params.update()
-
-    def state() -> np.ndarray:
-        """The optimised variables (unit-range parameters, log radiance) as one vector."""
-        return np.concatenate([np.asarray(opt[k], dtype=np.float64).reshape(-1) for k in [*bounds, "log_radiance"]])
-
-    # views of one image size side by side on one film, at most views_per_step per film; each step renders
-    # one film, cycling through them (a bounded cost per step whatever the number of views)
+def _films(fit_views: list[FitView], settings: MaterialFitSettings) -> list[list[ShardFilm]]:
+    """Views of one image size side by side on one film, at most ``views_per_step`` per film, each film dealt
+    into ``settings.shards`` shards. Each step renders one film, cycling through them (a bounded cost per step
+    whatever the number of views)."""
     groups: dict[tuple[int, int], list[FitView]] = {}
     for v in fit_views:
         if v.weight.any():
             groups.setdefault((v.camera.height, v.camera.width), []).append(v)
     films = [[g[i] for i in part] for g in groups.values()
              for part in np.array_split(np.arange(len(g)), math.ceil(len(g) / settings.views_per_step))]
-    batches = [(pinhole_sensor([v.camera for v in f], settings.spp),
-                mi.TensorXf(np.concatenate([v.target for v in f], axis=1)),
-                mi.TensorXf(np.concatenate([v.weight for v in f], axis=1)[..., None]),
-                3.0 * sum(float(v.weight.sum()) for v in f)) for f in films]
+    return [split_film([v.camera for v in f], [v.target for v in f], [v.weight for v in f], settings.shards)
+            for f in films]
+
+
+def _optimise(renderer: Any, fit_views: list[FitView], capture: Capture, mesh: Mesh, material: Material,
+              settings: MaterialFitSettings, reporter: Reporter) -> MaterialFit:
+    mi = mitsuba()
+
+    start_time = time.perf_counter()
+    garment, occluder = split_occluders(mesh, tuple(capture.garment_label_ids))
+    integrator = {"type": "prb", "max_depth": settings.max_depth, "hide_emitters": True}
+    # the BSDF's parameters as the scene holds them (their keys, and the material's values or the defaults)
+    params = mi.traverse(mi.load_dict(scene_dict(garment, material, Light(np.ones(3)), integrator)))
+    keys = list(params.keys())
+    bounds = {_find(keys, f"bsdf.{p.name}"): (p.lower, p.upper, p.name) for p in PARAMETERS[material.brdf]}
+    light_key = _find(keys, "light.radiance.value")
+    initial = {key: np.asarray(params[key], np.float64).reshape(-1) for key in bounds}
+    spec = SceneSpec(garment, occluder, material, integrator, renderer.options.occluder_albedo,
+                     renderer.options.smooth_normals, [*bounds, light_key], settings.spp)
+    films = _films(fit_views, settings)
+    # the optimised variables as one vector: each parameter mapped to [0, 1] by its bounds, then the log of
+    # the light radiance (radiance 1: the paper's initial value)
+    sizes = [initial[key].size for key in bounds]
+    lows = np.array([bounds[key][0] for key, n in zip(bounds, sizes) for _ in range(n)], np.float64)
+    spans = np.array([bounds[key][1] - bounds[key][0] for key, n in zip(bounds, sizes) for _ in range(n)],
+                     np.float64)
+    n_unit = int(sum(sizes))
+    start = np.array([value for key in bounds for value in initial[key]], np.float64)
+    x = np.concatenate([np.clip((start - lows) / spans, 0.0, 1.0), np.zeros(3)])
+    m, v = np.zeros_like(x), np.zeros_like(x)
+
+    def values(state: np.ndarray) -> list[np.ndarray]:
+        """Scene values of the state: each parameter, then the radiance."""
+        params = lows + spans * state[:n_unit]
+        return [*np.split(params, np.cumsum(sizes)[:-1]), np.exp(state[n_unit:])] if sizes else \
+            [np.exp(state[n_unit:])]
+
+    lr = settings.lr
     history: list[float] = []
     states: list[np.ndarray] = []
     stopped = "max_iterations"
     window = settings.patience
     drift: float | None = None  # measured once two windows have run
     polish_from: int | None = None  # the step where the final low-lr window began
-    with reporter.stage("material", total=settings.max_iterations, brdf=material.brdf) as stage:
+    processes = min(settings.shards, allotted_cores())
+    with ShardPool(spec, films, processes) as pool, \
+            reporter.stage("material", total=settings.max_iterations, brdf=material.brdf) as stage:
         for it in range(settings.max_iterations):
-            apply()
-            states.append(state())
-            sensor, target, weight, count = batches[it % len(batches)]
-            img = mi.render(scene, params, sensor=sensor, spp=settings.spp, seed=settings.seed + it,
-                            seed_grad=settings.seed + 1_000_003 + it)
-            loss = dr.sum(weight * dr.square(img[:, :, :3] - target), axis=None) / count
-            dr.backward(loss)
-            loss_value = float(loss.array[0])
-            opt.step()
+            states.append(x.copy())
+            scene_values = values(x)
+            loss_value, grads = pool.render(it % len(films), scene_values, settings.seed + settings.shards * it,
+                                            settings.seed + 1_000_003 + settings.shards * it)
+            # chain rule to the optimised variables: d/dunit = span d/dparam, d/dlog = radiance d/dradiance
+            gradient = np.concatenate([*grads[:-1], grads[-1] * scene_values[-1]])
+            gradient[:n_unit] *= spans
+            x, m, v = adam_update(x, gradient, m, v, it + 1, lr)
+            x[:n_unit] = np.clip(x[:n_unit], 0.0, 1.0)
             history.append(loss_value)
             if polish_from is not None:
                 if len(history) - polish_from >= window:
@@ -156,7 +168,7 @@ def _optimise(renderer: Any, fit_views: list[FitView], capture: Capture, mesh: M
                 if recent > before * (1.0 - settings.min_improvement) and drift < settings.max_drift:
                     stopped = "plateau"
                     polish_from = len(history)
-                    opt.set_learning_rate(settings.lr * settings.final_lr_factor)
+                    lr = settings.lr * settings.final_lr_factor
             if it % 10 == 0:
                 stage.progress(it + 1, loss=loss_value)
         iterations = len(history)
@@ -167,14 +179,9 @@ def _optimise(renderer: Any, fit_views: list[FitView], capture: Capture, mesh: M
     # 0.01); the final window at final_lr_factor x lr shrinks the jitter, which is one-sided at a bound (there
     # a mean at full lr stays off the bound: Disney's sheen kept 0.02-0.06 where its optimum is 0). Ended by
     # max_iterations, the variables may still travel and a mean would lag: the last iterate is returned.
-    if polish_from is None:
-        apply()
-        mean_state = state()
-    else:
-        mean_state = np.mean(states[-window:], axis=0)
+    mean_state = x if polish_from is None else np.mean(states[-window:], axis=0)
     fitted, offset = {}, 0
-    for key, (lo, hi, name) in bounds.items():
-        size = np.asarray(opt[key]).size
+    for (key, (lo, hi, name)), size in zip(bounds.items(), sizes):
         value = lo + (hi - lo) * mean_state[offset:offset + size]
         offset += size
         fitted[name] = float(value[0]) if size == 1 else value.tolist()
@@ -184,8 +191,9 @@ def _optimise(renderer: Any, fit_views: list[FitView], capture: Capture, mesh: M
         out_material.params["base_color"] = material.params["base_color"]
     figures = {"brdf": material.brdf, "iterations": iterations, "stopped": stopped,
                "loss_final": final, "polish_from": polish_from, "psnr_train_4spp": psnr_from_mse(final),
-               "seconds": time.perf_counter() - start_time, "views": sum(len(g) for g in groups.values()),
-               "films": len(batches),
-               "image_sizes": [list(k) for k in groups],
-               "drift": drift, "loss_history": [float(x) for x in history[:: max(1, len(history) // 200)]]}
+               "seconds": time.perf_counter() - start_time, "views": len([v for v in fit_views if v.weight.any()]),
+               "films": len(films), "shards": settings.shards,
+               "image_sizes": [list(k) for k in sorted({(v.camera.height, v.camera.width) for v in fit_views
+                                                      if v.weight.any()})],
+               "drift": drift, "loss_history": [float(h) for h in history[:: max(1, len(history) // 200)]]}
     return MaterialFit(out_material, Light(radiance=radiance), figures)

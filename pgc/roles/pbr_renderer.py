@@ -42,6 +42,10 @@ class MaterialFitSettings(Options):
     """Each Adam step renders one film of at most this many views (same image size, side by side); the steps
     cycle through the films. Bounds the cost of a step whatever the view count; fewer views per step add
     gradient noise from the view sampling."""
+    shards: int = Field(2, ge=1)
+    """Each film's views are dealt into this many shards, rendered on one Dr.Jit thread each (in parallel
+    processes, up to the cores the process is allotted) and their gradients summed in shard order: the result
+    does not depend on the thread count (Dr.Jit's multi-threaded gradient sums do, by racy atomic adds)."""
     max_depth: int = Field(4, ge=2)
     """Path length while fitting and when comparing models (4: direct light plus two indirect bounces;
     light trapped between garment and body needs them)."""

@@ -22,6 +22,7 @@ import traceback
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
+from pgc.cores import usable_cores
 from pgc.errors import PGCConfigError
 from pgc.events import Reporter
 
@@ -150,7 +151,7 @@ def worker_allotment() -> int:
     given = os.environ.get("OMP_NUM_THREADS", "")
     if given.isdigit() and int(given) > 0:
         return int(given)
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    cores = usable_cores()
     try:
         from distributed import get_worker
 
@@ -170,8 +171,7 @@ def _run_dask(tasks: list[Task], scheduler: str, reporter: Reporter, retries: in
     with dask.config.set({"distributed.scheduler.allowed-failures": max(retries, 1),
                           "distributed.worker.daemon": False}):
         if kind == "local":
-            cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-            threads = threads or max(1, cores // int(where))
+            threads = threads or max(1, usable_cores() // int(where))
             cluster = LocalCluster(n_workers=int(where), threads_per_worker=1, processes=True,
                                    dashboard_address=None, env=thread_environment(threads))
             address: Any = cluster

@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 import torch
 
+from pgc.cores import allotted_cores
 from pgc.events import Reporter
 from pgc.roles.splat_renderer import FitSplatsSettings, RenderOutput, SplatFit, SplatRenderer
 from pgc.splats.fit import fit_splats
@@ -38,7 +37,7 @@ class TorchSplatRenderer(SplatRenderer):
 
     @property
     def threads(self) -> int:
-        return self.options.threads or os.cpu_count() or 1
+        return self.options.threads or allotted_cores()
 
     def rasterize(self, means: torch.Tensor, rotmats: torch.Tensor, scales: torch.Tensor, opacities: torch.Tensor,
                   sh: torch.Tensor, camera: Camera, background=None, sh_degree: int | None = None):
