@@ -223,6 +223,12 @@ def resolve(data: dict[str, Any] | None = None, registry: Registry | None = None
                                  for e in exc.errors())
             raise PGCConfigError(f"{source}: [stages.{name}] {problems}; valid options: "
                                  f"{', '.join(model.model_fields)}") from None
+    kernel = stages["render"].kernel
+    metrics = [i.name for i in roles["metric"].implementations] if "metric" in roles else []
+    if kernel.mode == "metric" and kernel.metric not in metrics:
+        raise PGCConfigError(f"{source}: [stages.render.kernel] metric = '{kernel.metric}' is not among the run's "
+                             f"metrics {metrics}; name one of them, or add it to [metric] use (and install its "
+                             "plugin)")
     return RunConfig(roles, stages, block, source)
 
 

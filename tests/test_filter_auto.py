@@ -7,7 +7,7 @@ import pytest
 
 from pgc.errors import PGCDataError
 from pgc.filtering import (KernelSelection, candidate_sizes, choose_kernel_by_error, choose_kernel_by_gradient,
-                           TrainingFrame, kernel_size_for_height, select_kernel)
+                           choose_kernel_by_metric, TrainingFrame, kernel_size_for_height, select_kernel)
 from pgc.registry import default_registry
 
 H, W = 72, 96
@@ -119,3 +119,61 @@ def test_kernel_choice_errors_are_clear(filt):
         choose_kernel_by_error(filt, TrainingFrame(shading, shading[:10], alpha, shading, alpha))
     with pytest.raises(PGCDataError, match="kernel_size"):
         choose_kernel_by_gradient(filt, TrainingFrame(shading, shading, alpha), sizes=[4])
+
+
+def _psnr():
+    return default_registry().create("metric", "psnr")
+
+
+def test_metric_rule_scores_are_the_metric_of_the_hybrid_on_the_garment(filt):
+    alpha, shading = garment()
+    image = shading + detail(6)
+    pbr = shading * 1.05
+    frame = TrainingFrame(image, image, alpha, pbr, alpha)
+    choice = choose_kernel_by_metric(filt, [frame, frame], _psnr(), "psnr", sizes=[5, 9])
+    hybrid = np.clip(image - filt.lowpass(image, alpha, 9) + filt.lowpass(pbr, alpha, 9), 0, 1) * alpha[..., None]
+    expected = _psnr()(hybrid, np.clip(image, 0, 1) * alpha[..., None], alpha)
+    assert choice.criterion == "metric:psnr" and np.isclose(choice.scores[9], expected, rtol=1e-6)
+
+
+def test_metric_rule_keeps_detail_the_far_field_lacks_and_drops_noise_it_does_not(filt):
+    """I = shading + detail. A far field without the detail and an exact near field: every larger kernel
+    hands more of the detail to the near field, so the largest size scores best. An exact far field and a
+    near field with pixel noise: every larger kernel lets more noise through, so the smallest scores best.
+    Both with PSNR (higher is better) and with LPIPS (lower is better)."""
+    alpha, shading = garment()
+    image = shading + detail(6)
+    noisy = image + 0.05 * np.random.default_rng(1).standard_normal(image.shape).astype(np.float32)
+    sizes = [3, 7, 15, 31]
+    lacking = TrainingFrame(image, image, alpha, shading, alpha)
+    noise = TrainingFrame(image, noisy, alpha, image, alpha)
+    assert choose_kernel_by_metric(filt, [lacking], _psnr(), "psnr", sizes).size == 31
+    assert choose_kernel_by_metric(filt, [noise], _psnr(), "psnr", sizes).size == 3
+    lpips = default_registry().create("metric", "lpips")
+    assert not lpips.higher_is_better
+    assert choose_kernel_by_metric(filt, [lacking], lpips, "lpips", sizes).size > 3
+    assert choose_kernel_by_metric(filt, [noise], lpips, "lpips", sizes).size < 31
+
+
+def test_metric_rule_ties_go_to_the_smaller_size_and_bad_frames_fail_clearly(filt):
+    alpha, shading = garment()
+    same = TrainingFrame(shading, shading, alpha, shading, alpha)  # every size gives the same hybrid
+    assert choose_kernel_by_metric(filt, [same], _psnr(), "psnr", [3, 9, 15]).size == 3
+    with pytest.raises(PGCDataError, match="far-field render"):
+        choose_kernel_by_metric(filt, [TrainingFrame(shading, shading, alpha)], _psnr(), "psnr", [3])
+    with pytest.raises(PGCDataError, match="at least one view"):
+        choose_kernel_by_metric(filt, [], _psnr(), "psnr", [3])
+    with pytest.raises(PGCDataError, match="choose_kernel_by_metric"):
+        select_kernel(KernelSelection(mode="metric"), filt, same)
+
+
+def test_metric_rule_names_a_metric_of_the_run():
+    from pgc.config import resolve
+    from pgc.errors import PGCConfigError
+
+    with pytest.raises(PGCConfigError, match=r"\[stages.render.kernel\] metric = 'nope'.*add it to \[metric\] use"):
+        resolve({"stages": {"render": {"kernel": {"mode": "metric", "metric": "nope"}}}})
+    with pytest.raises(PGCConfigError, match=r"metric = 'lpips' is not among the run's metrics \['psnr'\]"):
+        resolve({"metric": {"use": ["psnr"]}, "stages": {"render": {"kernel": {"mode": "metric"}}}})
+    cfg = resolve({"stages": {"render": {"kernel": {"mode": "metric"}}}})
+    assert cfg.roles["metric"].create(cfg.stage("render").kernel.metric).higher_is_better is False

@@ -68,10 +68,18 @@ def test_mask_of_ones_is_the_plain_distance_and_a_mask_restricts(pair):
     assert metric(damaged, big, left) < 1e-3 < metric(damaged, big)  # the damage lies outside the mask
 
 
-def test_small_images_are_a_clear_error():
+def test_small_images_are_a_clear_error_unless_masked(pair):
+    """Without a mask LPIPS is undefined below the backbone's input size: a clear error. With a mask the image
+    is padded by its edge pixels to that size, the padding outside the mask: identical images score 0, and a
+    20 x 20 crop of the reference pair keeps the pair's order of distances (p1 closer to ref than p0)."""
     x = np.zeros((20, 20, 3), np.float32)
     with pytest.raises(PGCDataError, match="too small"):
         lpips()(x, x)
+    ref, p0, p1 = (a[20:40, 24:44] for a in pair)
+    mask = np.ones((20, 20))
+    metric = lpips()
+    assert metric(ref, ref, mask) == 0.0
+    assert 0.0 < metric(p1, ref, mask) < metric(p0, ref, mask) and np.isfinite(metric(p0, ref, mask))
 
 
 def test_shipped_weights_match_their_record():

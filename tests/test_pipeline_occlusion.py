@@ -125,8 +125,12 @@ def test_the_body_in_front_empties_every_garment_layer(far_source):
                                    np.median(layers["pbr"].color[inside], 0), rtol=0.1)
 
 
+@pytest.mark.parametrize("mode", ["error", "metric"])
 @pytest.mark.parametrize("far_source", ["auto", "splats"])
-def test_auto_far_field_is_the_one_with_the_lower_kernel_view_error(far_source):
+def test_auto_far_field_is_the_one_with_the_lower_kernel_view_error(far_source, mode):
+    """'auto' takes the far field whose hybrid scores better on the kernel views: the lower mean absolute error
+    (mode 'error') or the better metric (mode 'metric'; SSIM here, higher is better: the 32 x 24 px test view
+    is below LPIPS's smallest input)."""
     pytest.importorskip("torch")
     pytest.importorskip("open3d")
     from pgc.config import resolve
@@ -137,12 +141,15 @@ def test_auto_far_field_is_the_one_with_the_lower_kernel_view_error(far_source):
     shaded = renderer.pbr.render(renderer.asset.garment, renderer.asset.material, renderer.asset.light, CAMERA)
     seg = np.where(shaded.alpha > 0.5, 2, 0).astype(np.uint8)
     capture = Capture([View(CAMERA, shaded.color, segmentation=seg)], labels={0: "background", 1: "body", 2: "tshirt"})
-    cfg = resolve({"stages": {"render": {"far_source": far_source, "kernel_views": 1}}})
+    kernel = {"mode": mode, "metric": "ssim"}
+    cfg = resolve({"stages": {"render": {"far_source": far_source, "kernel_views": 1, "kernel": kernel}}})
     chosen = choose_kernel(renderer, capture, cfg)
+    assert chosen.criterion == ("metric:ssim" if mode == "metric" else "error")
     errors = chosen.far_errors
     assert all(np.isfinite(e) and e >= 0 for e in errors.values())
+    best = max if mode == "metric" else min
     if far_source == "auto":
-        assert set(errors) == {"splats", "mesh"} and chosen.far_source == min(errors, key=errors.get)
+        assert set(errors) == {"splats", "mesh"} and chosen.far_source == best(errors, key=errors.get)
     else:
         assert set(errors) == {"splats"} and chosen.far_source == "splats"
     assert chosen.kernel_size % 2 == 1

@@ -9,7 +9,13 @@
 - ``gradient`` (the paper's proposed future work): blur the training image until the mean gradient
   magnitude on the garment falls to ``gradient_ratio`` times that of the unblurred image (a ratio, so the
   rule does not depend on resolution or exposure); the first candidate size that gets there.
-Every rule only calls the ``filter`` role, so it runs on whichever backend is configured.
+- ``metric``: the size whose hybrid ``h(G) + l(S)`` scores best under a ``metric`` plugin (LPIPS by default)
+  against the captured image on the garment, averaged over the frame's views (the pipeline gives it views the
+  splat fit held out). The mean absolute error of ``error`` cannot tell a kernel that keeps the near field's
+  fine detail from one that blurs it: on the knit scene its scores at 5 and 9 px differ by less than its
+  tolerance, while LPIPS of the novel poses is 4 % better at 9 px.
+Every rule only calls the ``filter`` role (and ``metric`` a metric plugin), so it runs on whichever backend
+is configured.
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ from pgc.errors import PGCDataError
 from pgc.filtering.kernel import check_kernel_size, kernel_size_for_height, odd_size
 from pgc.options import Options
 from pgc.roles.filter import Filter
+from pgc.roles.metric import Metric
 
 
 @dataclass(frozen=True)
@@ -58,12 +65,13 @@ class TrainingFrame:
 class KernelSelection(Options):
     """How the composition stage sets the low-pass kernel (see the module docstring)."""
 
-    mode: Literal["paper", "fixed", "error", "gradient"] = Field("paper", description="rule for the size")
+    mode: Literal["paper", "fixed", "error", "gradient", "metric"] = Field("paper", description="rule for the size")
     size: int | None = Field(None, ge=1, description="kernel size in px for mode 'fixed' (odd)")
     sizes: list[int] | None = Field(None, description="candidate sizes (odd px); default: candidate_sizes(H, W)")
     tolerance: float = Field(0.1, ge=0.0, le=1.0, description="mode 'error': allowed share of the error range")
     gradient_ratio: float = Field(0.15, gt=0.0, lt=1.0,
                                   description="mode 'gradient': target mean gradient / unblurred mean gradient")
+    metric: str = Field("lpips", description="mode 'metric': the metric plugin that scores each size")
 
 
 def candidate_sizes(height: int, width: int, count: int = 10) -> list[int]:
@@ -95,26 +103,61 @@ def _sizes(sizes: list[int] | None, shape: tuple[int, ...]) -> list[int]:
     return sizes
 
 
+def hybrid_image(filt: Filter, frame: TrainingFrame, kernel_size: int) -> np.ndarray:
+    """The hybrid ``h(G) + l(S)`` of one frame at one kernel size, (H, W, 3) float32."""
+    return (filt.highpass(np.asarray(frame.near, np.float32), frame.near_alpha, kernel_size)
+            + filt.lowpass(np.asarray(frame.far, np.float32), frame.far_alpha, kernel_size))
+
+
 def hybrid_error(filt: Filter, frame: TrainingFrame, kernel_size: int) -> float:
     """``mean |I - (h(G) + l(S))|`` over the frame's garment weights and channels: the error rule's score of one
     kernel size."""
     image = np.asarray(frame.image, np.float32)
-    hybrid = (filt.highpass(np.asarray(frame.near, np.float32), frame.near_alpha, kernel_size)
-              + filt.lowpass(np.asarray(frame.far, np.float32), frame.far_alpha, kernel_size))
+    hybrid = hybrid_image(filt, frame, kernel_size)
     return _garment_mean(np.abs(image - hybrid), frame.weights()[..., None]) / image.shape[2]
+
+
+def _check_far(frame: TrainingFrame, rule: str) -> None:
+    if frame.far is None or frame.far_alpha is None:
+        raise PGCDataError(f"kernel selection: mode '{rule}' needs the far-field render and its alpha")
+    shapes = [np.shape(x) for x in (frame.image, frame.near, frame.far)]
+    if not shapes[0] == shapes[1] == shapes[2]:
+        raise PGCDataError(f"kernel choice: image {shapes[0]}, near-field render {shapes[1]} and far-field render "
+                           f"{shapes[2]} must have the same shape")
+
+
+def hybrid_score(filt: Filter, frames: list[TrainingFrame], kernel_size: int, metric: Metric) -> float:
+    """Mean of ``metric`` over ``frames`` of the hybrid at ``kernel_size`` against the captured image, both
+    on black outside the garment weights, restricted to them (the evaluation's convention)."""
+    values = []
+    for frame in frames:
+        weights = frame.weights()
+        hybrid = np.clip(hybrid_image(filt, frame, kernel_size), 0.0, 1.0) * weights[..., None]
+        image = np.clip(np.asarray(frame.image, np.float32), 0.0, 1.0) * weights[..., None]
+        values.append(metric(hybrid, image, weights))
+    return float(np.mean(values))
+
+
+def choose_kernel_by_metric(filt: Filter, frames: list[TrainingFrame], metric: Metric, name: str,
+                            sizes: list[int] | None = None) -> KernelChoice:
+    """The candidate size whose hybrid scores best under ``metric`` (:func:`hybrid_score`) over ``frames``;
+    ties go to the smaller size. ``name`` labels the criterion. Scores: the metric's value per candidate size."""
+    if not frames:
+        raise PGCDataError("kernel choice: mode 'metric' needs at least one view")
+    for frame in frames:
+        _check_far(frame, "metric")
+    scores = {k: hybrid_score(filt, frames, k, metric) for k in _sizes(sizes, np.shape(frames[0].image))}
+    sign = -1.0 if metric.higher_is_better else 1.0
+    size = min(scores, key=lambda k: (sign * scores[k], k))
+    return KernelChoice(size, f"metric:{name}", scores)
 
 
 def choose_kernel_by_error(filt: Filter, frame: TrainingFrame, sizes: list[int] | None = None,
                            tolerance: float = 0.1) -> KernelChoice:
     """The smallest size whose training-frame error ``mean |I - (h(G) + l(S))|`` (:func:`hybrid_error`) is within
     ``tolerance`` of the error range above the minimum. Scores: mean absolute error per candidate size."""
-    if frame.far is None or frame.far_alpha is None:
-        raise PGCDataError("kernel selection: mode 'error' needs the far-field render and its alpha")
-    shapes = [np.shape(x) for x in (frame.image, frame.near, frame.far)]
-    if not shapes[0] == shapes[1] == shapes[2]:
-        raise PGCDataError(f"kernel choice: image {shapes[0]}, near-field render {shapes[1]} and far-field render "
-                           f"{shapes[2]} must have the same shape")
-    scores = {k: hybrid_error(filt, frame, k) for k in _sizes(sizes, shapes[0])}
+    _check_far(frame, "error")
+    scores = {k: hybrid_error(filt, frame, k) for k in _sizes(sizes, np.shape(frame.image))}
     low, high = min(scores.values()), max(scores.values())
     size = min(k for k, e in scores.items() if e <= low + tolerance * (high - low))
     return KernelChoice(size, "error", scores)
@@ -151,7 +194,8 @@ def choose_kernel_by_gradient(filt: Filter, frame: TrainingFrame, sizes: list[in
 
 
 def select_kernel(selection: KernelSelection, filt: Filter, frame: TrainingFrame) -> KernelChoice:
-    """Apply ``selection`` to one view of the training frame."""
+    """Apply ``selection`` to one view of the training frame (mode 'metric' scores several views at once:
+    :func:`choose_kernel_by_metric`)."""
     height = np.asarray(frame.image).shape[0]
     if selection.mode == "paper":
         return KernelChoice(kernel_size_for_height(height), "paper")
@@ -161,4 +205,7 @@ def select_kernel(selection: KernelSelection, filt: Filter, frame: TrainingFrame
         return KernelChoice(check_kernel_size(selection.size), "fixed")
     if selection.mode == "gradient":
         return choose_kernel_by_gradient(filt, frame, selection.sizes, selection.gradient_ratio)
+    if selection.mode == "metric":
+        raise PGCDataError("kernel selection: mode 'metric' scores several views with a metric plugin; "
+                           "use choose_kernel_by_metric")
     return choose_kernel_by_error(filt, frame, selection.sizes, selection.tolerance)

@@ -130,9 +130,10 @@ def kernel_views(asset: GarmentAsset, capture, count: int) -> list:
 def choose_kernel(renderer: HybridRenderer, capture, cfg: RunConfig) -> KernelDecision:
     """Apply the configured kernel rule to the training frame (the capture pose, lit by the asset's fitted
     capture light, whatever light the run is rendered under) on the kernel views; with ``far_source = 'auto'``
-    also choose the far field: the one whose hybrid has the lower error there."""
+    also choose the far field: the one whose hybrid has the lower error there (mode 'metric': the better
+    score of its metric; ``far_errors`` then holds the metric's values)."""
     from pgc.albedo.texture_stage import garment_mask
-    from pgc.filtering.auto import TrainingFrame, hybrid_error, select_kernel
+    from pgc.filtering.auto import TrainingFrame, choose_kernel_by_metric, hybrid_error, select_kernel
 
     settings = cfg.stage("render")
     sources = ("splats", "mesh") if settings.far_source == "auto" else (settings.far_source,)
@@ -149,13 +150,22 @@ def choose_kernel(renderer: HybridRenderer, capture, cfg: RunConfig) -> KernelDe
         for source, f in far.items():
             frames[source].append(TrainingFrame(image=view.image, near=near, near_alpha=lay["near"].alpha,
                                                 far=unpremultiply(f), far_alpha=f.alpha, mask=mask))
-    decisions = {}
+    decisions = {}  # source -> (its score at its size, size, choices)
+    # mode 'metric': the metric plugin of the run's [metric] list (checked when the config was read)
+    metric = cfg.roles["metric"].create(settings.kernel.metric) if settings.kernel.mode == "metric" else None
     for source, per_view in frames.items():
+        if metric is not None:
+            # one choice over all kernel views; the far fields are compared by the same metric
+            choice = choose_kernel_by_metric(renderer.filter, per_view, metric, settings.kernel.metric,
+                                             settings.kernel.sizes)
+            decisions[source] = (choice.scores[choice.size], choice.size, [choice] * len(per_view))
+            continue
         choices = [select_kernel(settings.kernel, renderer.filter, frame) for frame in per_view]
         size = int(np.median([c.size for c in choices])) | 1
         error = float(np.mean([hybrid_error(renderer.filter, frame, size) for frame in per_view]))
         decisions[source] = (error, size, choices)
-    chosen = min(decisions, key=lambda k: decisions[k][0])
+    sign = -1.0 if metric is not None and metric.higher_is_better else 1.0
+    chosen = min(decisions, key=lambda k: sign * decisions[k][0])
     _, size, choices = decisions[chosen]
     return KernelDecision(kernel_size=size, far_source=chosen, criterion=choices[0].criterion,
                           per_view=[c.size for c in choices], far_errors={k: v[0] for k, v in decisions.items()},
@@ -197,7 +207,8 @@ def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
     run_light = light or asset.light
     key = content_key("render", file_key(run_dir / "garment.npz"),
                       file_key(Path(meta["asset"]) / "manifest.json"), settings, rotate_light,
-                      [cfg.role_key(r) for r in ("splat_renderer", "pbr_renderer", "filter")],
+                      [cfg.role_key(r) for r in ("splat_renderer", "pbr_renderer", "filter")
+                       + (("metric",) if settings.kernel.mode == "metric" else ())],
                       {"radiance": run_light.radiance.tolist(), "rotation": run_light.rotation_deg,
                        "envmap": None if run_light.envmap is None else array_key(run_light.envmap)})
 

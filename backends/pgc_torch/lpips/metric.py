@@ -23,7 +23,8 @@ def load_network(net: str) -> LPIPSNetwork:
 
 class LPIPSMetric(Metric):
     """LPIPS v0.1 on sRGB-encoded values. With a mask: the images are cropped to the mask's bounding box (grown
-    to the backbone's minimum size) and each layer's distance map is averaged with the mask as weights.
+    to the backbone's minimum size) and each layer's distance map is averaged with the mask as weights; an
+    image smaller than that minimum is padded to it by repeating its edge pixels, the padding outside the mask.
     Runs on one torch thread: the images are small, and OpenMP barriers between contended threads cost several
     times the convolutions (the tiny demo's LPIPS values came out bit-identical)."""
 
@@ -35,5 +36,9 @@ class LPIPSMetric(Metric):
         if mask is not None:
             rows, cols = mask_bbox(mask, MIN_SIZE[self.options.net])
             pred, target, mask = pred[rows, cols], target[rows, cols], np.asarray(mask)[rows, cols]
+            pad = [(0, max(0, MIN_SIZE[self.options.net] - n)) for n in mask.shape]
+            if any(after for _, after in pad):
+                pred, target = (np.pad(x, pad + [(0, 0)], mode="edge") for x in (pred, target))
+                mask = np.pad(mask, pad)
         with torch_threads(1):
             return network.distance(linear_to_srgb(pred), linear_to_srgb(target), mask)
