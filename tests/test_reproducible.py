@@ -112,14 +112,27 @@ def test_material_fit_is_identical_whatever_the_thread_count(monkeypatch):
     texture = checker_texture(32)
     capture = synthetic_capture(Material("pgc-sheen", {"roughness": 0.5}, texture), n_views=4, size=48, spp=16)
     renderer = default_registry().create("pbr_renderer", "mitsuba", {"spp": 4, "max_depth": 2})
-    settings = FAST.model_copy(update={"max_iterations": 10, "max_image_side": 48})  # several blocks per film
-    previous, fits = dr.thread_count(), []
+    # several blocks per film; two processes even for this small film when two cores are allotted
+    settings = FAST.model_copy(update={"max_iterations": 10, "max_image_side": 48, "parallel_min_pixels": 0})
+    import pgc_mitsuba.shards as shards
+
+    started = []
+
+    class CountedWorker(shards.Worker):  # the real worker process, counted
+        def __init__(self, *args):
+            started.append(1)
+            super().__init__(*args)
+
+    monkeypatch.setattr(shards, "Worker", CountedWorker)
+    previous, fits, workers = dr.thread_count(), [], []
     try:
         for threads in (2, 1, 2):
             dr.set_thread_count(threads)
             monkeypatch.setenv("OMP_NUM_THREADS", str(threads))
             fit = renderer.fit(capture, folded_sheet(n=16), Material("pgc-sheen", {}, texture), settings)
             fits.append((fit.light.radiance.tobytes(), repr(sorted(fit.material.params.items()))))
+            workers.append(len(started))
     finally:
         dr.set_thread_count(previous)
+    assert workers == [1, 1, 2]  # two cores: a worker process; one core: the shards in turn here
     assert fits[0] == fits[1] == fits[2]

@@ -144,7 +144,8 @@ def _optimise(renderer: Any, fit_views: list[FitView], capture: Capture, mesh: M
     window = settings.patience
     drift: float | None = None  # measured once two windows have run
     polish_from: int | None = None  # the step where the final low-lr window began
-    processes = min(settings.shards, allotted_cores())
+    pixels = max(sum(part.weight.size for part in parts) for parts in films)
+    processes = min(settings.shards, allotted_cores()) if pixels >= settings.parallel_min_pixels else 1
     with ShardPool(spec, films, processes) as pool, \
             reporter.stage("material", total=settings.max_iterations, brdf=material.brdf) as stage:
         for it in range(settings.max_iterations):
