@@ -223,13 +223,25 @@ def resolve(data: dict[str, Any] | None = None, registry: Registry | None = None
                                  for e in exc.errors())
             raise PGCConfigError(f"{source}: [stages.{name}] {problems}; valid options: "
                                  f"{', '.join(model.model_fields)}") from None
+    _check_kernel_metric(stages, roles, stages_raw, source)
+    return RunConfig(roles, stages, block, source)
+
+
+def _check_kernel_metric(stages: dict[str, Options], roles: dict[str, RoleChoice], stages_raw: dict[str, Any],
+                         source: str) -> None:
+    """The kernel rule's mode 'metric' needs its metric among the run's. Asked for in the config, a missing one
+    is an error; as the default, the rule falls back to mode 'error' (an installation without the LPIPS
+    plugin still runs)."""
     kernel = stages["render"].kernel
     metrics = [i.name for i in roles["metric"].implementations] if "metric" in roles else []
-    if kernel.mode == "metric" and kernel.metric not in metrics:
+    if kernel.mode != "metric" or kernel.metric in metrics:
+        return
+    given = (stages_raw.get("render") or {}).get("kernel") or {}
+    if "mode" in given or "metric" in given:
         raise PGCConfigError(f"{source}: [stages.render.kernel] metric = '{kernel.metric}' is not among the run's "
                              f"metrics {metrics}; name one of them, or add it to [metric] use (and install its "
                              "plugin)")
-    return RunConfig(roles, stages, block, source)
+    stages["render"] = stages["render"].model_copy(update={"kernel": kernel.model_copy(update={"mode": "error"})})
 
 
 def load(path: str | Path | None = None, registry: Registry | None = None,

@@ -177,3 +177,6 @@ def test_metric_rule_names_a_metric_of_the_run():
         resolve({"metric": {"use": ["psnr"]}, "stages": {"render": {"kernel": {"mode": "metric"}}}})
     cfg = resolve({"stages": {"render": {"kernel": {"mode": "metric"}}}})
     assert cfg.roles["metric"].create(cfg.stage("render").kernel.metric).higher_is_better is False
+    # as the default (not asked for), a run without the metric falls back to the error rule
+    assert resolve().stage("render").kernel.mode == "metric"
+    assert resolve({"metric": {"use": ["psnr"]}}).stage("render").kernel.mode == "error"

@@ -11,7 +11,8 @@ class RenderSettings(Options):
     """How the low-pass kernel is set: by default the size whose hybrid scores the best LPIPS on the views the
     splat fit held out, at the capture pose (mode 'error' is the paper's rule). On the knit scene it picks
     11 px (novel-pose LPIPS 0.183 against 0.193 for the error rule's 5 px); on the default scene, which has no
-    near-field detail, 3 px, as the error rule did (docs/pipeline.md)."""
+    near-field detail, 3 px, as the error rule did (docs/pipeline.md). Without the LPIPS plugin among the
+    run's metrics the default falls back to mode 'error'."""
     views: int = Field(4, ge=1, description="capture cameras used for novel frames (evenly spread)")
     frame_stride: int = Field(10, ge=1, description="render every n-th simulated frame")
     texture_size: int = Field(256, ge=16, le=4096, description="far-field texture T_t resolution (texels)")
