@@ -12,10 +12,13 @@ def usable_cores() -> int:
     return os.cpu_count() or 1
 
 
-def allotted_cores() -> int:
-    """This process's share of the cores: ``OMP_NUM_THREADS`` when whoever started it set one (a sweep worker,
-    a job script), else every usable core."""
+def given_threads() -> int | None:
+    """``OMP_NUM_THREADS`` when whoever started the process set a positive count (a sweep worker, a job
+    script), else None."""
     given = os.environ.get("OMP_NUM_THREADS", "")
-    if given.isdigit() and int(given) > 0:
-        return int(given)
-    return usable_cores()
+    return int(given) if given.isdigit() and int(given) > 0 else None
+
+
+def allotted_cores() -> int:
+    """This process's share of the cores: :func:`given_threads`, else every usable core."""
+    return given_threads() or usable_cores()

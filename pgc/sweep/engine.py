@@ -22,7 +22,7 @@ import traceback
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from pgc.cores import usable_cores
+from pgc.cores import given_threads, usable_cores
 from pgc.errors import PGCConfigError
 from pgc.events import Reporter
 
@@ -148,9 +148,9 @@ class _PinnedCall:
 def worker_allotment() -> int:
     """This worker's share of the cores: ``OMP_NUM_THREADS`` when whoever started the worker set it (a local
     cluster does; so can a job script), else usable cores // the worker's Dask threads (>= 1)."""
-    given = os.environ.get("OMP_NUM_THREADS", "")
-    if given.isdigit() and int(given) > 0:
-        return int(given)
+    given = given_threads()
+    if given:
+        return given
     cores = usable_cores()
     try:
         from distributed import get_worker
