@@ -67,46 +67,65 @@ def tiny_scene(count: int = 300, size: int = 32, seed: int = 0):
 
 
 def torch_backward(renderer, world, camera):
-    """Forward+backward of the torch renderer (sum of colour and alpha) w.r.t. every world parameter."""
+    """Forward+backward of the torch renderer (sum of colour and alpha) w.r.t. every world parameter; the
+    closure returns the gradients (numpy)."""
     import torch
 
     from pgc_torch.splat.binding import quat_to_rotmat
     from pgc_torch.threads import torch_threads
 
     @torch_threads(1)
-    def run() -> None:
+    def run() -> list[np.ndarray]:
         p = [torch.tensor(np.asarray(x), dtype=torch.float32, requires_grad=True)
              for x in (world.means, world.quats, world.scales, world.opacities, world.sh)]
         color, alpha, _ = renderer.rasterize(p[0], quat_to_rotmat(p[1]), p[2], p[3], p[4], camera)
         (color.sum() + alpha.sum()).backward()
+        return [t.grad.numpy() for t in p]
     return run
 
 
 def jax_backward(renderer, world, camera):
-    """Forward+backward of the JAX renderer: its bins built once, then the gradient of its render function."""
+    """Forward+backward of the JAX renderer (sum of colour and alpha) w.r.t. every world parameter, jitted, on
+    its compositor: the fused kernel as a custom VJP, or the XLA compositor on bins built once per call; the
+    closure returns the gradients (numpy)."""
     import jax
     import jax.numpy as jnp
 
+    from pgc_jax.splat.fused import camera_bits, fused_render
     from pgc_jax.splat.project import quat_to_rotmat
     from pgc_jax.splat.render import camera_arrays, make_bins, render_bound
 
     o = renderer.options
-    means, quats, scales, opac, sh = [jnp.asarray(np.asarray(x), jnp.float32) for x in
-                                      (world.means, world.quats, world.scales, world.opacities, world.sh)]
-    cam = camera_arrays(camera, jnp.float32)
-    bg = jnp.zeros((camera.height, camera.width, 3), jnp.float32)
+    arrays = [jnp.asarray(np.asarray(x), jnp.float32) for x in
+              (world.means, world.quats, world.scales, world.opacities, world.sh)]
+    h, w = camera.height, camera.width
+    bg = jnp.zeros((h, w, 3), jnp.float32)
+    if renderer.compositor == "fused":
+        bits, threads = jnp.asarray(camera_bits(camera, o.near)), renderer.threads
 
-    def run() -> None:
+        @jax.jit
+        def grads(m, q, s, a, c):
+            def loss(m, q, s, a, c):
+                color, alpha, _ = fused_render(m, quat_to_rotmat(q), s, a, c, bits, bg, height=h, width=w,
+                                               count=c.shape[1], threads=threads)
+                return color.sum() + alpha.sum()
+            return jax.grad(loss, argnums=(0, 1, 2, 3, 4))(m, q, s, a, c)
+
+        return lambda: [np.asarray(g) for g in jax.block_until_ready(grads(*arrays))]
+    cam = camera_arrays(camera, jnp.float32)
+
+    def run() -> list[np.ndarray]:
+        means, quats, scales, opac, sh = arrays
         bins = make_bins(means, quat_to_rotmat(quats), scales, opac, camera, cam, tile=o.tile_size,
                          chunk=o.chunk_size, near=o.near)
 
         def loss(m, q, s, a, c):
             color, alpha, _ = render_bound(m, quat_to_rotmat(q), s, a, c, cam, bg, bins.gauss, bins.tile, bins.first,
-                                           width=camera.width, height=camera.height, tile=o.tile_size, sh_degree=3,
-                                           near=o.near)
+                                           width=w, height=h, tile=o.tile_size, sh_degree=3, near=o.near)
             return color.sum() + alpha.sum()
 
-        jax.block_until_ready(jax.grad(loss, argnums=(0, 1, 2, 3, 4))(means, quats, scales, opac, sh))
+        grads = jax.block_until_ready(jax.grad(loss, argnums=(0, 1, 2, 3, 4))(means, quats, scales, opac, sh))
+        return [np.asarray(g) for g in grads]
     return run
 
 
@@ -141,13 +160,13 @@ def kernel_benchmarks(args, reg, env) -> list[dict[str, Any]]:
     """fused vs cpp vs JAX on one view, pair throughput and its fraction of the measured machine peaks."""
     import torch
 
-    from pgc_torch.splat import fused
+    from pgc.splats import fused
     from pgc_torch.splat.binding import quat_to_rotmat
     from pgc_torch.splat.rasterizer import rasterize
     from pgc_torch.threads import torch_threads
 
     known = {i.name: i for i in reg.list("splat_renderer")}
-    jax_renderer = known["jax"].create() if "jax" in known and known["jax"].available else None
+    jax_ok = "jax" in known and known["jax"].available
     records, rows = [], []
     for threads, size, count in ((t, s, c) for t in args.threads for s in args.kernel_sizes
                                  for c in args.kernel_counts):
@@ -161,7 +180,7 @@ def kernel_benchmarks(args, reg, env) -> list[dict[str, Any]]:
         rot = quat_to_rotmat(torch.tensor(np.asarray(world.quats), dtype=torch.float64)).float()
         base = [torch.tensor(np.asarray(x), dtype=torch.float32) for x in
                 (world.means, world.scales, world.opacities, world.sh)]
-        stats = fused.render_stats(base[0], rot, *base[1:], camera, count=world.sh.shape[1],
+        stats = fused.render_stats([x.numpy() for x in (base[0], rot, *base[1:])], camera, count=world.sh.shape[1],
                                    threads=threads)
 
         def forward(backend: str):
@@ -183,9 +202,12 @@ def kernel_benchmarks(args, reg, env) -> list[dict[str, Any]]:
         for backend in ("fused", "cpp"):
             measured[backend] = (min_time(forward(backend), args.repeats),
                                  min_time(backward(backend), args.repeats))
-        if jax_renderer is not None and threads == args.threads[0]:  # XLA runs its own thread pool: once
-            measured["jax"] = ((float("nan"), float("nan")),
-                               min_time(BACKWARD["jax"](jax_renderer, world, camera), args.repeats))
+        if jax_ok:  # forward+backward only (the JAX forward is the same kernel call, or XLA's)
+            measured["jax/fused"] = ((float("nan"), float("nan")), min_time(BACKWARD["jax"](
+                known["jax"].create({"compositor": "fused", "threads": threads}), world, camera), args.repeats))
+            if threads == args.threads[0]:  # XLA runs its own thread pool: once
+                measured["jax/xla"] = ((float("nan"), float("nan")), min_time(BACKWARD["jax"](
+                    known["jax"].create({"compositor": "xla"}), world, camera), args.repeats))
         (f_fused, fc_fused), (b_fused, bc_fused) = measured["fused"]
         for name, ((fwd, fwd_cpu), (fwdbwd, fwdbwd_cpu)) in measured.items():
             # throughput per second of the cores' time: CPU seconds of all threads / threads
@@ -199,7 +221,7 @@ def kernel_benchmarks(args, reg, env) -> list[dict[str, Any]]:
                        "exp_fraction_forward": fwd_rate / peaks["exp_per_s"],
                        "fwdbwd_cpu_ratio_to_fused": fwdbwd_cpu / bc_fused, "fwdbwd_wall_ratio_to_fused":
                        fwdbwd / b_fused, "seconds_cpu": fwd_cpu, "seconds_forward_backward_cpu": fwdbwd_cpu}
-            records.append({"role": "splat_renderer", "implementation": f"torch/{name}" if name != "jax" else "jax",
+            records.append({"role": "splat_renderer", "implementation": name if name.startswith("jax") else f"torch/{name}",
                             "preset": label, "settings": {"size": size, "gaussians": count,
                                                           "threads": threads},
                             "seconds": fwd, "seconds_forward_backward": fwdbwd, "errors": figures,

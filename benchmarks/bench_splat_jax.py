@@ -1,15 +1,16 @@
 #!/usr/bin/env python
-"""Speed against error of the JAX splat renderer: its block sizes (tile, chunk) against the torch renderer.
+"""Speed against error of the JAX splat renderer: its fused compositor and the block sizes (tile, chunk) of its
+XLA compositor, against the torch renderer (its default, fused path).
 
 For each scene (Gaussians on the surface of the test body seen by a dome camera, as in bench_splat.py, and a
-tiny random scene where the float64 per-pixel reference runs), every (tile_size, chunk_size) setting of the
-JAX renderer is timed forward (``render``: projection, host binning, compositing) and forward+backward (host
-binning plus one jitted ``value_and_grad`` of the image w.r.t. every world parameter; compilation excluded,
+tiny random scene where the float64 per-pixel reference runs), every JAX setting ('fused', or
+TILExCHUNK for the XLA compositor) is timed forward (``render``) and forward+backward (one jitted gradient of
+the image w.r.t. every world parameter; the XLA compositor's host binning included; compilation excluded,
 it is reported separately), as ratios to the torch renderer measured in the same run. Errors: largest
 absolute colour difference to the reference (tiny scene) or to the torch image; relative difference of the
 gradients to torch's. Records (JSON) follow docs/bench.md, "Record schema".
 
-    python benchmarks/bench_splat_jax.py [--sizes 128 256] [--counts 10000 50000] [--blocks 16x32 8x16 16x64]
+    python benchmarks/bench_splat_jax.py [--sizes 128 256] [--counts 10000 50000] [--blocks fused 8x16 16x32]
 """
 
 from __future__ import annotations
@@ -25,60 +26,15 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 from bench_filter import print_table, timed  # noqa: E402
-from bench_splat import surface_scene, tiny_scene  # noqa: E402
-
-
-def torch_forward_backward(world, camera):
-    """Closure: torch forward+backward of ``sum(colour) + sum(alpha)``; returns the gradients (numpy)."""
-    import torch
-
-    from pgc_torch.splat.binding import quat_to_rotmat
-    from pgc_torch.splat.rasterizer import rasterize
-
-    def run():
-        p = [torch.tensor(np.asarray(x), dtype=torch.float32, requires_grad=True)
-             for x in (world.means, world.quats, world.scales, world.opacities, world.sh)]
-        color, alpha, _ = rasterize(p[0], quat_to_rotmat(p[1]), p[2], p[3], p[4], camera, None, 3, 0.01, 16, "cpp",
-                                    torch.get_num_threads())
-        (color.sum() + alpha.sum()).backward()
-        return [t.grad.numpy() for t in p]
-    return run
-
-
-def jax_forward_backward(world, camera, tile: int, chunk: int):
-    """Closure: JAX host binning + jitted value_and_grad of ``sum(colour) + sum(alpha)``; returns gradients."""
-    import jax
-    import jax.numpy as jnp
-
-    from pgc_jax.splat.project import quat_to_rotmat
-    from pgc_jax.splat.render import camera_arrays, make_bins, render_bound, rotmats_of
-
-    arrays = [jnp.asarray(np.asarray(x), jnp.float32) for x in
-              (world.means, world.quats, world.scales, world.opacities, world.sh)]
-    cam = camera_arrays(camera)
-    bg = jnp.zeros(3, jnp.float32)
-    kw = dict(width=camera.width, height=camera.height, tile=tile, sh_degree=3, near=0.01)
-
-    @jax.jit
-    def grads(m, q, s, o, sh, gauss, tiles, first):
-        def loss(m, q, s, o, sh):
-            color, alpha, _ = render_bound(m, quat_to_rotmat(q), s, o, sh, cam, bg, gauss, tiles, first, **kw)
-            return color.sum() + alpha.sum()
-        return jax.grad(loss, argnums=(0, 1, 2, 3, 4))(m, q, s, o, sh)
-
-    def run():
-        m, q, s, o, sh = arrays
-        b = make_bins(m, rotmats_of(q), s, o, camera, cam, tile=tile, chunk=chunk, near=0.01)
-        return [np.asarray(g) for g in jax.block_until_ready(grads(m, q, s, o, sh, b.gauss, b.tile, b.first))]
-    return run
+from bench_splat import jax_backward, surface_scene, tiny_scene, torch_backward  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[128, 256])
     parser.add_argument("--counts", type=int, nargs="+", default=[10000, 50000])
-    parser.add_argument("--blocks", nargs="+", default=["16x32", "8x16", "16x64"],
-                        help="JAX (tile_size)x(chunk_size) settings to compare")
+    parser.add_argument("--blocks", nargs="+", default=["fused", "8x16", "16x32"],
+                        help="JAX settings to compare: 'fused', or TILExCHUNK of the XLA compositor")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--no-torch", action="store_true", help="skip torch (ratios then are to the first JAX row)")
     parser.add_argument("--out", default="bench_splat_jax.json")
@@ -101,13 +57,16 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
         runs: list[tuple[str, dict, Any, Any]] = []
         if not args.no_torch:
             from pgc_torch.splat.renderer import TorchSplatRenderer
-            torch_r = TorchSplatRenderer({"compositor": "cpp"})
-            runs.append(("torch", {}, lambda r=torch_r: r.render(world, camera), torch_forward_backward(world, camera)))
+            torch_r = TorchSplatRenderer()
+            runs.append(("torch", {}, lambda r=torch_r: r.render(world, camera), torch_backward(torch_r, world, camera)))
         for block in args.blocks:
-            tile, chunk = (int(x) for x in block.split("x"))
-            jr = JaxSplatRenderer({"tile_size": tile, "chunk_size": chunk})
-            runs.append(("jax", {"tile_size": tile, "chunk_size": chunk}, lambda r=jr: r.render(world, camera),
-                         jax_forward_backward(world, camera, tile, chunk)))
+            if block == "fused":
+                opts = {"compositor": "fused"}
+            else:
+                tile, chunk = (int(x) for x in block.split("x"))
+                opts = {"compositor": "xla", "tile_size": tile, "chunk_size": chunk}
+            jr = JaxSplatRenderer(opts)
+            runs.append(("jax", opts, lambda r=jr: r.render(world, camera), jax_backward(jr, world, camera)))
         base_img = base_grads = base_f = base_b = None
         for name, opts, fwd_fn, bwd_fn in runs:
             start = time.perf_counter()
@@ -130,7 +89,8 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
                             "settings": dict(opts, size=camera.width, gaussians=len(world.means)), "seconds": fwd,
                             "seconds_forward_backward": bwd, "peak_mb": round(max(peak, peak_b), 1),
                             "errors": errors, "versions": env})
-            shown = name + (f" {opts['tile_size']}x{opts['chunk_size']}" if opts else "")
+            shown = name + (" fused" if opts.get("compositor") == "fused" else
+                            f" {opts['tile_size']}x{opts['chunk_size']}" if opts else "")
             rows.append({"scene": label, "backend": shown,
                          "fwd ms": f"{1e3 * fwd:.0f}", "fwd+bwd ms": f"{1e3 * bwd:.0f}",
                          "fwd / first": f"{fwd / base_f:.2f}", "fwd+bwd / first": f"{bwd / base_b:.2f}",

@@ -51,7 +51,8 @@ def test_torch_and_jax_follow_the_same_schedule_and_record_the_same_figures(scen
     capture, mesh = scene
     settings = dict(FAST, iterations=60, converge_every=20, converge_db=0.0)
     fits = {"torch": TorchSplatRenderer({"threads": 1}).fit(capture, mesh, settings),
-            "jax": JaxSplatRenderer({"tile_size": 8, "chunk_size": 16}).fit(capture, mesh, settings)}
+            "jax": JaxSplatRenderer({"compositor": "xla", "tile_size": 8, "chunk_size": 16}).fit(capture, mesh, settings),
+            "jax-fused": JaxSplatRenderer({"compositor": "fused", "threads": 1}).fit(capture, mesh, settings)}
     t, j = fits["torch"], fits["jax"]
     assert set(t.figures) == set(j.figures)
     assert t.figures["iterations"] == j.figures["iterations"] == 60
@@ -61,6 +62,10 @@ def test_torch_and_jax_follow_the_same_schedule_and_record_the_same_figures(scen
     assert t.heldout_views == j.heldout_views and t.heldout_views
     assert abs(t.figures["psnr_heldout"] - j.figures["psnr_heldout"]) < 0.5
     assert abs(t.figures["psnr_heldout_full"] - j.figures["psnr_heldout_full"]) < 0.5
+    # the JAX fit on the compiled kernel: the torch fit's kernel, JAX's binding, losses and Adam
+    f = fits["jax-fused"]
+    assert set(f.figures) == set(t.figures) and f.figures["iterations"] == 60
+    assert abs(t.figures["psnr_heldout"] - f.figures["psnr_heldout"]) < 0.25
 
 
 @pytest.mark.slow
@@ -171,7 +176,8 @@ def test_surface_term_keeps_gaussians_on_their_triangles_in_both_backends(scene)
     capture, mesh = scene
     settings = dict(FAST, iterations=15, converge_db=0.0, select_count=False, select_sh=False, keep="all",
                     prune_weight=0.0, lr_position=2e-3, lr_position_final=2e-3)
-    for renderer in (TorchSplatRenderer({"threads": 1}), JaxSplatRenderer({"tile_size": 8, "chunk_size": 16})):
+    for renderer in (TorchSplatRenderer({"threads": 1}), JaxSplatRenderer({"compositor": "xla"}),
+                     JaxSplatRenderer({"compositor": "fused"})):
         free = renderer.fit(capture, mesh, dict(settings, lambda_surface=0.0)).gaussians
         held = renderer.fit(capture, mesh, dict(settings, lambda_surface=100.0)).gaussians
         offset = {k: float(np.sqrt(np.mean(g.means[:, 1] ** 2))) for k, g in (("free", free), ("held", held))}

@@ -7,12 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pgc.splats import fused
 from pgc.splats.reference import render_reference
 from pgc.types import Camera, WorldGaussians
 
 torch = pytest.importorskip("torch")
 
-from pgc_torch.splat import fused  # noqa: E402
 from pgc_torch.splat.binding import quat_to_rotmat  # noqa: E402
 from pgc_torch.splat.rasterizer import rasterize  # noqa: E402
 from pgc_torch.splat.renderer import TorchSplatRenderer  # noqa: E402
@@ -225,7 +225,7 @@ def test_auto_picks_the_fused_path_and_stats_count_the_work():
     assert TorchSplatRenderer({"compositor": "auto"}).compositor == "fused"
     world, cam = _scene(50, 2), _camera()
     p = [x.detach() for x in _params(world, torch.float32)]
-    stats = fused.render_stats(*p, cam, count=16)
+    stats = fused.render_stats([x.numpy() for x in p], cam, count=16)
     assert 0 < stats["visible"] <= 50 and stats["entries"] >= stats["visible"] and stats["pairs"] > 0
 
 
@@ -252,7 +252,7 @@ def test_opacity_aware_binning_drops_tiles_but_no_pixel():
         if r > 0 and x0 <= x1 and y0 <= y1:
             box_tiles += int((x1 // tile - x0 // tile + 1) * (y1 // tile - y0 // tile + 1))
     params = _params(world, torch.float32)
-    stats = fused.render_stats(*[p.detach() for p in params], cam, count=16, tile=tile)
+    stats = fused.render_stats([p.detach().numpy() for p in params], cam, count=16, tile=tile)
     assert 0 < stats["entries"] < 0.6 * box_tiles
     ref = render_reference(world, cam)
     weights = [torch.tensor(x, dtype=torch.float32) for x in _weights(48, 64, 22)]

@@ -14,11 +14,13 @@ jax = pytest.importorskip("jax")
 import jax.numpy as jnp  # noqa: E402
 
 from pgc_jax.splat.binding import bind, triangle_frames  # noqa: E402
+from pgc_jax.splat.fused import camera_bits, fused_render  # noqa: E402
 from pgc_jax.splat.project import quat_to_rotmat  # noqa: E402
 from pgc_jax.splat.render import camera_arrays, make_bins, render_bound  # noqa: E402
 from pgc_jax.splat.renderer import JaxSplatRenderer  # noqa: E402
 
 W, H = 32, 24
+COMPOSITORS = ["xla", "fused"]
 
 
 def _camera(w: int = W, h: int = H, f: float = 40.0) -> Camera:
@@ -48,16 +50,52 @@ def _assert_matches_reference(world, cam, background, options=None, sh_degree=No
     return out, ref
 
 
-@pytest.mark.parametrize("options", [{"tile_size": 8, "chunk_size": 8}, {"tile_size": 16, "chunk_size": 32}])
+@pytest.mark.parametrize("options", [{"compositor": "xla", "tile_size": 8, "chunk_size": 8},
+                                     {"compositor": "xla", "tile_size": 16, "chunk_size": 32},
+                                     {"compositor": "fused", "threads": 2}])
 def test_images_match_reference_on_overlapping_scenes(options):
     bg = np.random.default_rng(5).uniform(size=(H, W, 3))
     out, ref = _assert_matches_reference(_scene(120, 0), _camera(), bg, options)
     assert ref.alpha.max() > 0.99 and ref.alpha.min() < 0.5  # saturated and sparse regions both present
 
 
+@pytest.mark.parametrize("compositor", COMPOSITORS)
 @pytest.mark.parametrize("degree", [0, 2])
-def test_lower_sh_degrees_match_reference(degree):
-    _assert_matches_reference(_scene(120, 7), _camera(), np.array([0.2, 0.3, 0.1]), sh_degree=degree)
+def test_lower_sh_degrees_match_reference(degree, compositor):
+    _assert_matches_reference(_scene(120, 7), _camera(), np.array([0.2, 0.3, 0.1]), {"compositor": compositor},
+                              sh_degree=degree)
+
+
+def test_fused_backward_is_the_same_after_its_workspace_is_used_or_evicted():
+    """The fused VJP keeps each forward's workspace for its backward; a second backward, or one whose workspace
+    was evicted by KEEP later forwards, re-runs the forward and gives the same bytes."""
+    from pgc_jax.splat import fused
+
+    world, cam = _scene(80, 3), _camera()
+    arrays = [jnp.asarray(np.asarray(x), jnp.float32) for x in (world.means, world.scales, world.opacities,
+                                                                  world.sh)]
+    rot = jnp.asarray(np_quat_to_rotmat(world.quats), jnp.float32)
+    bits, bg = jnp.asarray(camera_bits(cam, 0.01)), jnp.zeros((H, W, 3), jnp.float32)
+
+    def image(m):
+        return fused_render(m, rot, *arrays[1:], bits, bg, height=H, width=W, count=16)[0]
+
+    _, vjp = jax.vjp(image, arrays[0])
+    cot = jnp.asarray(np.random.default_rng(1).normal(size=(H, W, 3)), jnp.float32)
+    first = np.asarray(vjp(cot)[0])
+    again = np.asarray(vjp(cot)[0])                     # its workspace was taken by the first backward
+    _, later = jax.vjp(image, arrays[0])
+    for _ in range(fused.KEEP + 1):
+        jax.vjp(image, arrays[0])                       # evicts ``later``'s workspace
+    evicted = np.asarray(later(cot)[0])
+    assert np.abs(first).max() > 0
+    np.testing.assert_array_equal(first, again)
+    np.testing.assert_array_equal(first, evicted)
+
+
+def test_auto_picks_the_fused_kernel_on_the_cpu():
+    assert JaxSplatRenderer().compositor == "fused"
+    assert JaxSplatRenderer({"compositor": "xla"}).compositor == "xla"
 
 
 def test_binding_matches_numpy_including_degenerate_triangles():
@@ -93,7 +131,7 @@ def test_binding_matches_numpy_including_degenerate_triangles():
 GRAD_CAM = _camera(24, 20, 30.0)
 
 
-def _grad_problem(dtype, seed=1, n=60):
+def _grad_problem(dtype, compositor="xla", seed=1, n=60):
     """A random mesh-embedded scene: (jitted loss(params) at fixed bins, params, numpy inputs)."""
     rng = np.random.default_rng(seed)
     cam = GRAD_CAM
@@ -115,23 +153,34 @@ def _grad_problem(dtype, seed=1, n=60):
                     jnp.asarray(faces))
 
     bins = make_bins(*world(params), cam, cam_a, tile=8, chunk=8, near=0.01)
+    bits = jnp.asarray(camera_bits(cam, 0.01))
 
     def loss(p):
         g = world(p)
-        c, a, d = render_bound(g.means, g.rotmats, g.scales, g.opacities, p["sh"], cam_a, jnp.asarray(bg, dtype),
-                               bins.gauss, bins.tile, bins.first, width=cam.width, height=cam.height, tile=8,
-                               sh_degree=3, near=0.01)
+        if compositor == "fused":
+            c, a, d = fused_render(g.means, g.rotmats, g.scales, g.opacities, p["sh"], bits,
+                                   jnp.asarray(np.broadcast_to(bg, (cam.height, cam.width, 3)), dtype),
+                                   height=cam.height, width=cam.width, count=16)
+        else:
+            c, a, d = render_bound(g.means, g.rotmats, g.scales, g.opacities, p["sh"], cam_a, jnp.asarray(bg, dtype),
+                                   bins.gauss, bins.tile, bins.first, width=cam.width, height=cam.height, tile=8,
+                                   sh_degree=3, near=0.01)
         return jnp.sum(jnp.concatenate([c, a[..., None], d[..., None]], -1) * jnp.asarray(weights, dtype))
 
     return jax.jit(loss), params, dict(data, parent=parent, faces=F, bg=bg, weights=weights)
 
 
+@pytest.fixture(scope="module", params=COMPOSITORS)
+def compositor(request):
+    return request.param
+
+
 @pytest.fixture(scope="module")
-def grads64():
+def grads64(compositor):
     """float64 gradients and central finite differences (10 random entries per parameter)."""
     rng = np.random.default_rng(0)
     with jax.enable_x64(True):
-        loss, params, _ = _grad_problem(jnp.float64)
+        loss, params, _ = _grad_problem(jnp.float64, compositor)
         grads = jax.jit(jax.grad(loss))(params)
         eps, fds = 1e-6, {}
         for name, value in params.items():
@@ -149,8 +198,8 @@ def grads64():
 
 
 @pytest.fixture(scope="module")
-def grads32():
-    loss, params, data = _grad_problem(jnp.float32)
+def grads32(compositor):
+    loss, params, data = _grad_problem(jnp.float32, compositor)
     return {k: np.asarray(v, np.float64) for k, v in jax.jit(jax.grad(loss))(params).items()}, data
 
 
@@ -170,7 +219,7 @@ def test_float32_gradients_match_float64_to_1e_3(grads32, grads64):
         assert np.all(np.abs(a - b) <= 1e-3 * np.maximum(np.abs(b), 1e-2 * np.abs(b).max())), name
 
 
-def test_images_and_gradients_match_torch(grads32):
+def test_images_and_gradients_match_torch(grads32, compositor):
     """The same loss through the torch backend (binding + rasteriser) gives the same value and gradients."""
     torch = pytest.importorskip("torch")
     from pgc_torch.splat.binding import bind as torch_bind
@@ -187,7 +236,7 @@ def test_images_and_gradients_match_torch(grads32):
     loss.sum().backward()
     world = np_bind(GaussianSet(data["parent"], data["means"], data["quats"], data["log_scales"],
                                 data["opacity_logits"], data["sh"]), data["vertices"], data["faces"])
-    out = JaxSplatRenderer().render(world, GRAD_CAM, data["bg"])
+    out = JaxSplatRenderer({"compositor": compositor}).render(world, GRAD_CAM, data["bg"])
     np.testing.assert_allclose(out.color, c.detach().numpy(), atol=1e-5)
     np.testing.assert_allclose(out.alpha, a.detach().numpy(), atol=1e-5)
     np.testing.assert_allclose(out.depth, d.detach().numpy(), atol=2e-5)
@@ -212,30 +261,37 @@ def _hard_scene() -> WorldGaussians:
     return WorldGaussians(means, quats, scales, np.linspace(0.3, 0.99, n), sh)
 
 
-def test_hard_cases_are_finite_and_match_reference():
+@pytest.mark.parametrize("compositor", COMPOSITORS)
+def test_hard_cases_are_finite_and_match_reference(compositor):
     world, cam = _hard_scene(), _camera()
-    _assert_matches_reference(world, cam, np.array([0.1, 0.2, 0.3]))
+    _assert_matches_reference(world, cam, np.array([0.1, 0.2, 0.3]), {"compositor": compositor})
 
 
-def test_hard_cases_have_finite_gradients():
+@pytest.mark.parametrize("compositor", COMPOSITORS)
+def test_hard_cases_have_finite_gradients(compositor):
     world, cam = _hard_scene(), _camera()
     arrays = [jnp.asarray(x, jnp.float32) for x in (world.means, world.quats, world.scales, world.opacities, world.sh)]
-    ca = camera_arrays(cam)
+    ca, bits = camera_arrays(cam), jnp.asarray(camera_bits(cam, 0.01))
     bins = make_bins(arrays[0], jax.jit(quat_to_rotmat)(arrays[1]), *arrays[2:4], cam, ca, tile=16, chunk=32,
                      near=0.01)
 
     def loss(m, q, s, o, sh):
-        c, a, d = render_bound(m, quat_to_rotmat(q), s, o, sh, ca, jnp.zeros(3), bins.gauss, bins.tile, bins.first,
-                               width=W, height=H, tile=16, sh_degree=3, near=0.01)
+        if compositor == "fused":
+            c, a, d = fused_render(m, quat_to_rotmat(q), s, o, sh, bits, jnp.zeros((H, W, 3)), height=H, width=W,
+                                   count=16)
+        else:
+            c, a, d = render_bound(m, quat_to_rotmat(q), s, o, sh, ca, jnp.zeros(3), bins.gauss, bins.tile,
+                                   bins.first, width=W, height=H, tile=16, sh_degree=3, near=0.01)
         return jnp.sum(c) + jnp.sum(a) + jnp.sum(d)
 
     for g in jax.jit(jax.grad(loss, argnums=(0, 1, 2, 3, 4)))(*arrays):
         assert np.all(np.isfinite(np.asarray(g)))
 
 
-def test_empty_set_and_all_culled_give_background():
+@pytest.mark.parametrize("compositor", COMPOSITORS)
+def test_empty_set_and_all_culled_give_background(compositor):
     cam, bg = _camera(), np.array([0.25, 0.5, 0.75])
-    r = JaxSplatRenderer()
+    r = JaxSplatRenderer({"compositor": compositor})
     empty = WorldGaussians(np.zeros((0, 3)), np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0), np.zeros((0, 1, 3)))
     behind = WorldGaussians(np.array([[0.0, 0.0, -2.0]]), np.array([[1.0, 0, 0, 0]]), np.full((1, 3), 0.1),
                             np.ones(1), np.zeros((1, 1, 3)))

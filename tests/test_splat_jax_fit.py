@@ -81,8 +81,9 @@ class _Progress:
 
 
 @pytest.mark.slow
-def test_fit_converges_and_resumes(tmp_path):
-    renderer = JaxSplatRenderer({"tile_size": 8, "chunk_size": 16})
+@pytest.mark.parametrize("compositor", ["xla", "fused"])
+def test_fit_converges_and_resumes(tmp_path, compositor):
+    renderer = JaxSplatRenderer({"compositor": compositor, "tile_size": 8, "chunk_size": 16})
     mesh = _octahedron_sphere()
     capture = _capture(renderer, mesh)
     settings = {"iterations": 120, "min_gaussians": 400, "gaussians_per_pixel": 1.0, "log_every": 10, "init_color": "random",
@@ -102,7 +103,9 @@ def test_fit_converges_and_resumes(tmp_path):
     assert f["pruned_no_contribution"] > 0
     assert f["iterations"] == 120 and f["sh_degree"] in (0, 1, 2, 3) and np.isfinite(f["psnr_heldout"])
     assert f["lr_factor"] == 10.0  # lr_scale = 0: sqrt(30000 / 120) clamped to 10 (fitplan.auto_lr_factor)
-    assert f["backend"]["chunk_capacity_changes"] == 2  # one capacity per image size (half, full), no growth
+    assert f["backend"]["compositor"] == compositor
+    # xla: one chunk capacity per image size (half, full), no growth; the fused kernel bins every call itself
+    assert f["backend"]["chunk_capacity_changes"] == (2 if compositor == "xla" else 0)
     # the full model renders the training views well (PSNR against the images, sRGB)
     all_fit = renderer.fit(capture, mesh, dict(settings, keep="all", select_sh=False, prune_weight=0.0,
                                                checkpoint_dir=None))

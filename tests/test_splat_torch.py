@@ -5,13 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pgc.splats import fused as fused_kernel
 from pgc.splats.binding import bind as np_bind
 from pgc.splats.reference import render_reference
 from pgc.types import Camera, GaussianSet, WorldGaussians
 
 torch = pytest.importorskip("torch")
 
-from pgc_torch.splat import fused, kernel  # noqa: E402
+from pgc_torch.splat import kernel  # noqa: E402
 from pgc_torch.splat.binding import bind, quat_to_rotmat  # noqa: E402
 from pgc_torch.splat.rasterizer import rasterize  # noqa: E402
 from pgc_torch.splat.renderer import TorchSplatRenderer  # noqa: E402
@@ -203,7 +204,7 @@ def test_kernel_build_failure_is_reported_and_auto_falls_back(tmp_path, monkeypa
     monkeypatch.setenv("CXX", str(tmp_path / "no-such-compiler"))
     with pytest.raises(kernel.KernelUnavailable):
         kernel.build()
-    monkeypatch.setattr(fused, "available", lambda: False)
+    monkeypatch.setattr(fused_kernel, "available", lambda: False)
     assert TorchSplatRenderer({"compositor": "auto"}).compositor == "cpp"
     monkeypatch.setattr(kernel, "available", lambda: False)
     assert TorchSplatRenderer({"compositor": "auto"}).compositor == "torch"

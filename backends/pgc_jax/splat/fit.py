@@ -18,10 +18,13 @@ import numpy as np
 
 from pgc.roles.splat_renderer import FitSplatsSettings
 from pgc.splats.binding import triangle_frames as np_triangle_frames
+from pgc.splats.fused import DEFAULT_TILE
+from pgc.splats.sh import SH_C0
 from pgc.splats.fit import PARAMETERS, FitBackend, FitView, adam_update
 from pgc.types import Camera, GaussianSet, Mesh
 from pgc_jax.splat.binding import apply_frames
 from pgc_jax.splat.binning import Bins, bucket
+from pgc_jax.splat.fused import camera_bits, fused_render
 from pgc_jax.splat.losses import linear_to_srgb, ssim
 from pgc_jax.splat.render import CameraArrays, camera_arrays, make_bins, render_bound
 
@@ -31,7 +34,7 @@ class _Arrays:
     """A view's arrays."""
 
     camera: Camera
-    cam: CameraArrays
+    cam: CameraArrays | jnp.ndarray  # the XLA compositor's arrays, or the fused kernel's camera bits
     target: jnp.ndarray      # (H, W, 3) sRGB
     background: jnp.ndarray  # (H, W, 3) linear
     mask: jnp.ndarray        # (H, W) (zeros when the view has none)
@@ -43,14 +46,21 @@ def _sh_mask(degree: int, dtype) -> jnp.ndarray:
     return jnp.asarray(np.arange(16) < (degree + 1) ** 2, dtype)
 
 
-@partial(jax.jit, static_argnames=("width", "height", "tile", "near"))
-def _render(params, frames, parent, keep, sh_mask, cam, background, gauss, tiles, first, probe, *,
-            width, height, tile, near):
-    """Colour, alpha of the current model; ``keep`` (N,) scales opacities, ``probe`` (N, 3) adds to colours."""
+@partial(jax.jit, static_argnames=("width", "height", "tile", "near", "threads"))
+def _render(params, frames, parent, keep, sh_mask, cam, background, bins, probe, *, width, height, tile, near,
+            threads):
+    """Colour, alpha of the current model; ``keep`` (N,) scales opacities, ``probe`` (N, 3) adds to colours.
+
+    ``bins`` None: the fused kernel (``cam``: :func:`pgc_jax.splat.fused.camera_bits`; ``probe`` must be None);
+    else the XLA compositor on the chunk table ``(gauss, tiles, first)`` (``cam``: :class:`CameraArrays`)."""
     means, rot, scales, opac = apply_frames(*frames, parent, params["means"], params["quats"],
                                             params["log_scales"], params["opacity_logits"])
     sh = params["sh"] * sh_mask[None, : params["sh"].shape[1], None]
-    color, alpha, _ = render_bound(means, rot, scales, opac * keep, sh, cam, background, gauss, tiles, first,
+    if bins is None:
+        color, alpha, _ = fused_render(means, rot, scales, opac * keep, sh, cam, background, height=height,
+                                       width=width, count=sh.shape[1], tile=DEFAULT_TILE, threads=threads)
+        return color, alpha
+    color, alpha, _ = render_bound(means, rot, scales, opac * keep, sh, cam, background, *bins,
                                    width=width, height=height, tile=tile, sh_degree=3, near=near, color_offset=probe)
     return color, alpha
 
@@ -63,30 +73,42 @@ def _world(params, frames, parent, keep):
     return means, rot, scales, opac * keep
 
 
-@partial(jax.jit, static_argnames=("width", "height", "tile", "near"))
-def _contributions(params, frames, parent, sh_mask, cam, background, gauss, tiles, first, *, width, height, tile,
-                   near):
+@partial(jax.jit, static_argnames=("width", "height", "tile", "near", "threads"))
+def _contributions(params, frames, parent, sh_mask, cam, background, bins, *, width, height, tile, near, threads):
     """(N,) each Gaussian's summed compositing weight over the pixels of one view (d colour_r / d offset_r)."""
     n = params["means"].shape[0]
+    zero = jnp.zeros((n, 3), background.dtype)
+    if bins is None:  # the fused kernel: colour = C0 probe + 0.5 from a DC-only SH, as the torch fit does
+        means, rot, scales, opac = apply_frames(*frames, parent, params["means"], params["quats"],
+                                                params["log_scales"], params["opacity_logits"])
+
+        def red(probe):
+            color, _, _ = fused_render(means, rot, scales, opac, probe[:, None, :], cam, background, height=height,
+                                       width=width, count=1, tile=DEFAULT_TILE, threads=threads)
+            return color[..., 0].sum()
+
+        return jax.grad(red)(zero)[:, 0] / SH_C0
     ones = jnp.ones((n,), background.dtype)
 
     def red(probe):
-        return _render(params, frames, parent, ones, sh_mask, cam, background, gauss, tiles, first, probe,
-                       width=width, height=height, tile=tile, near=near)[0][..., 0].sum()
+        return _render(params, frames, parent, ones, sh_mask, cam, background, bins, probe, width=width,
+                       height=height, tile=tile, near=near, threads=threads)[0][..., 0].sum()
 
-    return jax.grad(red)(jnp.zeros((n, 3), background.dtype))[:, 0]
+    return jax.grad(red)(zero)[:, 0]
 
 
-@partial(jax.jit, static_argnames=("width", "height", "tile", "near", "lambda_l1", "lambda_mask", "lambda_surface"))
-def _train_step(params, adam, t, lrs, frames, parent, sh_mask, cam, background, target, mask, band, gauss, tiles,
-                first, *, width, height, tile, near, lambda_l1, lambda_mask, lambda_surface):
+@partial(jax.jit, static_argnames=("width", "height", "tile", "near", "threads", "lambda_l1", "lambda_mask",
+                                   "lambda_surface"))
+def _train_step(params, adam, t, lrs, frames, parent, sh_mask, cam, background, target, mask, band, bins, *, width,
+                height, tile, near, threads, lambda_l1, lambda_mask, lambda_surface):
     """One Adam step (number ``t`` >= 1) on one view; returns new params, Adam state, loss and the sRGB MSE."""
     n = params["means"].shape[0]
-    ones, zero = jnp.ones((n,), target.dtype), jnp.zeros((n, 3), target.dtype)
+    ones = jnp.ones((n,), target.dtype)
+    probe = None if bins is None else jnp.zeros((n, 3), target.dtype)
 
     def loss_fn(p):
-        color, alpha = _render(p, frames, parent, ones, sh_mask, cam, background, gauss, tiles, first, zero,
-                               width=width, height=height, tile=tile, near=near)
+        color, alpha = _render(p, frames, parent, ones, sh_mask, cam, background, bins, probe, width=width,
+                               height=height, tile=tile, near=near, threads=threads)
         pred = linear_to_srgb(color)
         loss = lambda_l1 * jnp.mean(jnp.abs(pred - target)) + (1.0 - lambda_l1) * (1.0 - ssim(pred, target))
         surface = lambda_surface * jnp.mean(p["means"][:, 1] ** 2) if lambda_surface else 0.0
@@ -108,6 +130,7 @@ class JaxFitBackend(FitBackend):
     def __init__(self, renderer: Any) -> None:
         o = renderer.options
         self.dtype, self.tile, self.chunk, self.near = renderer.dtype, o.tile_size, o.chunk_size, o.near
+        self.fused, self.threads = renderer.compositor == "fused", renderer.threads
         self.capacity: dict[tuple[int, int], int] = {}
         self.compiles = 0
 
@@ -124,14 +147,22 @@ class JaxFitBackend(FitBackend):
         zeros = np.zeros((h, w), np.float32)
         mask = zeros if view.mask is None else view.mask
         band = zeros if view.band is None else view.band
-        return _Arrays(view.camera, camera_arrays(view.camera, self.dtype), jnp.asarray(view.target, self.dtype),
+        cam = jnp.asarray(camera_bits(view.camera, self.near)) if self.fused else camera_arrays(view.camera, self.dtype)
+        return _Arrays(view.camera, cam, jnp.asarray(view.target, self.dtype),
                        jnp.asarray(view.background, self.dtype), jnp.asarray(mask, self.dtype),
                        jnp.asarray(band, self.dtype))
 
     def _keep(self, keep: np.ndarray | None) -> jnp.ndarray:
         return jnp.ones(len(self.parent), self.dtype) if keep is None else jnp.asarray(keep, self.dtype)
 
-    def _bins(self, view: _Arrays, keep: jnp.ndarray | None = None) -> Bins:
+    def _bins(self, view: _Arrays, keep: jnp.ndarray | None = None) -> tuple | None:
+        """The XLA compositor's chunk table (gauss, tiles, first) of the view; None for the fused kernel."""
+        if self.fused:
+            return None
+        b = self._chunks(view, keep)
+        return b.gauss, b.tile, b.first
+
+    def _chunks(self, view: _Arrays, keep: jnp.ndarray | None = None) -> Bins:
         keep = self._keep(None) if keep is None else keep
         means, rot, scales, opac = _world(self.params, self.frames, self.parent, keep)
         size = (view.camera.width, view.camera.height)
@@ -141,44 +172,43 @@ class JaxFitBackend(FitBackend):
         if b.n_chunks > cap:  # grow with head room: each new capacity is one more compilation
             self.capacity[size] = bucket(int(1.25 * b.n_chunks) + 1)
             self.compiles += 1
-            return self._bins(view, keep)
+            return self._chunks(view, keep)
         return b
 
     def reserve(self, handles: Sequence[_Arrays]) -> None:
         """Each image size's chunk capacity at 1.25 x the most any view needs now (one compilation, not one per
-        growth)."""
-        for h in handles:
-            b = self._bins(h)
+        growth); the fused kernel needs none."""
+        for h in handles if not self.fused else ():
+            b = self._chunks(h)
             size = (h.camera.width, h.camera.height)
             self.capacity[size] = max(self.capacity[size], bucket(int(1.25 * b.n_chunks) + 1))
 
     def _kw(self, view: _Arrays) -> dict[str, Any]:
-        return dict(width=view.camera.width, height=view.camera.height, tile=self.tile, near=self.near)
+        return dict(width=view.camera.width, height=view.camera.height, tile=self.tile, near=self.near,
+                    threads=self.threads)
 
     def step(self, handle: _Arrays, degree: int, lrs: dict[str, Any], t: int,
              s: FitSplatsSettings) -> tuple[jax.Array, jax.Array]:
-        b = self._bins(handle)
         self.params, self.adam, loss, mse = _train_step(
             self.params, self.adam, float(t), lrs, self.frames, self.parent, _sh_mask(degree, self.dtype),
-            handle.cam, handle.background, handle.target, handle.mask, handle.band, b.gauss, b.tile, b.first,
+            handle.cam, handle.background, handle.target, handle.mask, handle.band, self._bins(handle),
             **self._kw(handle), lambda_l1=float(s.lambda_l1), lambda_mask=float(s.lambda_mask),
             lambda_surface=float(s.lambda_surface))
         return loss, mse
 
     def render(self, handle: _Arrays, degree: int, keep: np.ndarray | None = None) -> np.ndarray:
         k = self._keep(keep)
-        b = self._bins(handle, k)
+        bins = self._bins(handle, k)
+        probe = None if bins is None else jnp.zeros((len(self.parent), 3), self.dtype)
         color, _ = _render(self.params, self.frames, self.parent, k, _sh_mask(degree, self.dtype), handle.cam,
-                           handle.background, b.gauss, b.tile, b.first, jnp.zeros((len(self.parent), 3), self.dtype),
-                           **self._kw(handle))
+                           handle.background, bins, probe, **self._kw(handle))
         return np.asarray(color)
 
     def contributions(self, handles: Sequence[_Arrays], degree: int) -> np.ndarray:
         total = np.zeros(len(self.parent))
         for h in handles:
-            b = self._bins(h)
             total += np.asarray(_contributions(self.params, self.frames, self.parent, _sh_mask(degree, self.dtype),
-                                               h.cam, h.background, b.gauss, b.tile, b.first, **self._kw(h)))
+                                               h.cam, h.background, self._bins(h), **self._kw(h)))
         return total
 
     def state(self) -> dict[str, np.ndarray]:
@@ -196,4 +226,4 @@ class JaxFitBackend(FitBackend):
                                                                for n, t in self.params.items()})
 
     def figures(self) -> dict[str, Any]:
-        return {"chunk_capacity_changes": self.compiles}
+        return {"compositor": "fused" if self.fused else "xla", "chunk_capacity_changes": self.compiles}

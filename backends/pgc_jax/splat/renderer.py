@@ -6,6 +6,7 @@ from typing import Any
 
 import numpy as np
 
+from pgc.cores import allotted_cores
 from pgc.errors import PGCConfigError, PGCDataError
 from pgc.events import Reporter
 from pgc.roles.splat_renderer import FitSplatsSettings, RenderOutput, SplatFit, SplatRenderer
@@ -37,6 +38,25 @@ class JaxSplatRenderer(SplatRenderer):
         super().__init__(options)
         self.dtype = _float_dtype(self.options.precision)
 
+    @property
+    def compositor(self) -> str:
+        """'fused' or 'xla': the rendering path this instance uses."""
+        from pgc.splats import fused
+
+        choice = self.options.compositor
+        if choice == "auto":
+            import jax
+
+            return "fused" if jax.default_backend() == "cpu" and fused.available() else "xla"
+        if choice == "fused":
+            fused.load()  # raises KernelUnavailable with the reason
+        return choice
+
+    @property
+    def threads(self) -> int:
+        """Threads of the fused kernel."""
+        return self.options.threads or allotted_cores()
+
     def render(self, gaussians: WorldGaussians, camera: Camera, background: np.ndarray | None = None,
                sh_degree: int | None = None) -> RenderOutput:
         import jax
@@ -51,6 +71,8 @@ class JaxSplatRenderer(SplatRenderer):
             raise PGCDataError(f"WorldGaussians.sh must have shape (N, K, 3) with N={n}, got {sh.shape}")
         degree = int(round(np.sqrt(sh.shape[1]))) - 1 if sh_degree is None else int(sh_degree)
         bg = background_image(background, camera.height, camera.width)
+        if self.compositor == "fused":
+            return self._render_fused(gaussians, sh, camera, bg, degree)
         m = bucket(n)  # padded with transparent Gaussians: fewer recompilations for varying N
         pad = lambda x, fill=0.0: np.concatenate(  # noqa: E731
             [np.asarray(x, np.float64), np.full((m - n,) + np.shape(x)[1:], fill)], axis=0)
@@ -64,6 +86,22 @@ class JaxSplatRenderer(SplatRenderer):
             tile=o.tile_size, chunk=o.chunk_size, near=o.near, sort_depth=depth64))
         return RenderOutput(color=np.asarray(color, np.float32), alpha=np.asarray(alpha, np.float32),
                             depth=np.asarray(depth, np.float32))
+
+    def _render_fused(self, gaussians: WorldGaussians, sh: np.ndarray, camera: Camera, bg: np.ndarray,
+                      degree: int) -> RenderOutput:
+        """The fused kernel's forward on numpy arrays directly (no gradient is asked of ``render``)."""
+        from pgc.splats import fused
+        from pgc.splats.quaternion import quat_to_rotmat
+
+        dt = np.float64 if self.options.precision == "float64" else np.float32
+        arrays = [np.asarray(x, dt) for x in (gaussians.means, quat_to_rotmat(np.asarray(gaussians.quats, np.float64)),
+                                              gaussians.scales, gaussians.opacities, sh)]
+        out = fused.forward(arrays, fused.camera_vector(camera, self.options.near), bg.astype(dt), camera.height,
+                            camera.width, (degree + 1) ** 2, fused.DEFAULT_TILE, self.threads)
+        has = out.alpha > 0
+        depth = np.where(has, out.depth_sum / np.where(has, out.alpha, 1.0), 0.0)
+        return RenderOutput(color=out.color.astype(np.float32), alpha=out.alpha.astype(np.float32),
+                            depth=depth.astype(np.float32))
 
     def fit(self, capture: Capture, mesh: Mesh, settings: FitSplatsSettings | None = None,
             reporter: Reporter | None = None) -> SplatFit:

@@ -15,6 +15,7 @@ import torch
 
 from pgc.roles.splat_renderer import FitSplatsSettings
 from pgc.splats.fit import PARAMETERS, FitBackend, FitView, adam_update
+from pgc.splats.sh import SH_C0
 from pgc.types import Camera, GaussianSet, Mesh
 from pgc_torch.threads import torch_threads
 
@@ -102,7 +103,7 @@ class TorchFitBackend(FitBackend):
             probe = torch.zeros(len(total), 1, 3).requires_grad_(True)  # colour = probe * C0 + 0.5
             color, _, _ = self.renderer.rasterize(means, rot, scales, opac, probe, h.camera, h.background, 0)
             color[..., 0].sum().backward()
-            total += probe.grad[:, 0, 0] / 0.28209479177387814
+            total += probe.grad[:, 0, 0] / SH_C0
         return total.numpy()
 
     def state(self) -> dict[str, np.ndarray]:

@@ -8,13 +8,14 @@ import torch
 from pgc.cores import allotted_cores
 from pgc.events import Reporter
 from pgc.roles.splat_renderer import FitSplatsSettings, RenderOutput, SplatFit, SplatRenderer
+from pgc.splats import fused as fused_kernel
 from pgc.splats.fit import fit_splats
 from pgc.types import Camera, Capture, Mesh, WorldGaussians
 
 from pgc_torch.specs_splat import TorchSplatOptions
 from pgc_torch.threads import torch_threads
 
-from . import fused, kernel
+from . import kernel
 from .binding import quat_to_rotmat
 from .fit import TorchFitBackend
 from .rasterizer import rasterize
@@ -30,9 +31,9 @@ class TorchSplatRenderer(SplatRenderer):
         """'fused', 'cpp' or 'torch': the rendering path this instance uses."""
         choice = self.options.compositor
         if choice == "auto":
-            return "fused" if fused.available() else "cpp" if kernel.available() else "torch"
+            return "fused" if fused_kernel.available() else "cpp" if kernel.available() else "torch"
         if choice in ("fused", "cpp"):
-            (fused if choice == "fused" else kernel).load()  # raises KernelUnavailable with the reason
+            (fused_kernel if choice == "fused" else kernel).load()  # raises KernelUnavailable with the reason
         return choice
 
     @property
