@@ -139,3 +139,27 @@ def test_bench_records_chart_speed_against_error(tmp_path):
     assert not bench_chart(tmp_path / "none.svg", records[2:]) and not (tmp_path / "none.svg").exists()
     with pytest.raises(PGCDataError, match="pgc bench --out"):
         _bench_records(tmp_path / "elsewhere")
+
+
+def test_detail_windows_find_the_textured_patches_inside_the_garment():
+    from pgc.pipeline.report_figures import detail_windows
+
+    rng = np.random.default_rng(0)
+    img = np.full((120, 160, 3), 0.4)
+    yy, xx = np.mgrid[0:120, 0:160]
+    ribs = 0.4 + 0.3 * ((xx // 2) % 2)[..., None]          # 2 px ribs: the finest detail, top left
+    img[20:60, 20:60] = ribs[20:60, 20:60]                    # on the half-window grid (20 px)
+    img[60:100, 100:140] += rng.normal(0, 0.05, (40, 40, 3))  # weaker texture, bottom right
+    img[80:120, 0:40] = ribs[80:120, 0:40]                    # strong detail outside the garment: never chosen
+    inside = np.zeros((120, 160), bool)
+    inside[:, 5:] = True
+    inside[75:, :45] = False
+    wins = detail_windows(img, inside, size=40, count=3)
+    assert wins[0] == (20, 60, 20, 60) and wins[1] == (60, 100, 100, 140)
+    for a, b, c, d in wins:
+        assert b - a == d - c == 40 and inside[a:b, c:d].all()
+    for i, (a, b, c, d) in enumerate(wins):          # no two overlap
+        for e, f, g, h in wins[i + 1:]:
+            assert b <= e or f <= a or d <= g or h <= c
+    assert detail_windows(img, np.zeros((120, 160), bool)) == []
+    assert detail_windows(img[:30, :30], np.ones((30, 30), bool), size=40) == []

@@ -129,6 +129,7 @@ def _motion_section(view: RunView, f: _Figures) -> str:
     elif gt is None:
         heat.append("<p class='note'>No ground truth for this run: error heatmaps need a synthetic capture "
                     "(<code>pgc eval RUN CAPTURE</code> renders it).</p>")
+    detail = _detail_section(layers, pred, cam, f, f"{slug}_{t:04d}")
     dec = []
     for key, label, value in (("low_far", "l(S): low-pass of the far field", pred["low_far"][cam]),
                               ("high_near", "h(G): high-pass of the near field, shown as 0.5 + h",
@@ -155,9 +156,41 @@ def _motion_section(view: RunView, f: _Figures) -> str:
             f"(nearest neighbour); far field: {html.escape(str(view.render.get('far_source', '?')))}, kernel "
             f"{view.render.get('kernel_size', '?')} px</p>")
     return (head + f"<div class='strip'>{''.join(cells)}</div><div class='strip'>{''.join(heat)}</div>"
-            f"<h4>Decomposition: hybrid = l(S) + h(G)</h4><div class='strip'>{''.join(dec)}</div>"
+            + detail + f"<h4>Decomposition: hybrid = l(S) + h(G)</h4><div class='strip'>{''.join(dec)}</div>"
             f"<h4>In motion</h4><div class='strip'>{f.img(anim, anim_caption, 'anim')}</div>"
             + _relight_section(view, preds, box, k, f, slug, frame_ms))
+
+
+def _detail_section(layers: dict[str, np.ndarray | None], pred: dict[str, np.ndarray], cam: int, f: _Figures,
+                    stem: str) -> str:
+    """Close-ups of the garment where the ground truth (else the hybrid) holds the most fine detail: the same
+    windows of every variant, enlarged so that ribs, seams and pocket edges a few pixels wide can be seen."""
+    from scipy.ndimage import binary_erosion
+
+    source = layers["gt"] if layers["gt"] is not None else layers["hybrid"]
+    alpha = pred.get("hybrid_alpha", pred.get("alpha"))[cam]
+    inside = np.asarray(alpha) > 0.5
+    if layers["gt"] is not None:
+        inside &= np.asarray(layers["gt"]).max(-1) > 0
+    inside = binary_erosion(inside, iterations=2)
+    windows = figs.detail_windows(source, inside)
+    if not windows:
+        return ""
+    k = max(1, figs.DETAIL_TARGET // figs.DETAIL_SIZE)
+    rows = []
+    for i, box in enumerate(windows):
+        cells = []
+        for key, label in STRIP:
+            if layers[key] is None:
+                continue
+            name = f"{stem}_detail{i}_{key}.png"
+            figs.save_png(f.path(name), figs.to_rgb8(figs.crop(layers[key], box, k)))
+            cells.append(f.img(name, label, "crop"))
+        rows.append(f"<p class='note'>rows {box[0]}-{box[1]}, columns {box[2]}-{box[3]}, enlarged x{k}</p>"
+                    f"<div class='strip'>{''.join(cells)}</div>")
+    what = "ground truth" if layers["gt"] is not None else "hybrid"
+    return (f"<h4>Detail: the {len(windows)} windows of {figs.DETAIL_SIZE} px with the most fine detail in the "
+            f"{what}</h4>" + "".join(rows))
 
 
 def is_relit(view: RunView) -> bool:

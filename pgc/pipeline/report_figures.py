@@ -19,6 +19,10 @@ CROP_PAD = 4
 """Pixels kept around the garment's bounding box."""
 ERROR_MAX = 0.25
 """Linear-RGB absolute error (mean over channels) shown at the top of the heatmap colour scale."""
+DETAIL_SIZE = 40
+"""Edge (px) of a detail window: small enough to enlarge 5x, large enough to hold a pocket edge or a few ribs."""
+DETAIL_TARGET = 200
+"""Displayed edge (px) a detail window is enlarged to."""
 
 
 def garment_box(coverages: list[np.ndarray], pad: int = CROP_PAD) -> tuple[int, int, int, int]:
@@ -30,6 +34,39 @@ def garment_box(coverages: list[np.ndarray], pad: int = CROP_PAD) -> tuple[int, 
         return 0, h, 0, w
     rows, cols = np.nonzero(union.any(1))[0], np.nonzero(union.any(0))[0]
     return (max(rows[0] - pad, 0), min(rows[-1] + 1 + pad, h), max(cols[0] - pad, 0), min(cols[-1] + 1 + pad, w))
+
+
+def detail_windows(image: np.ndarray, inside: np.ndarray, size: int = DETAIL_SIZE, count: int = 2,
+                   band: tuple[float, float] = (1.0, 3.0)) -> list[tuple[int, int, int, int]]:
+    """Up to ``count`` non-overlapping ``size`` x ``size`` boxes (row0, row1, col0, col1) of ``image`` (H, W, 3)
+    that hold the most fine structure: the largest sums of the band-pass energy ``|G_a * image - G_b * image|^2``
+    (Gaussian blurs of standard deviations ``band`` = (a, b) px, mean over channels: ribs, seams and edges a few
+    pixels wide, not pixel noise) among windows lying wholly where ``inside`` (H, W, bool) is true, on a grid of
+    half a window; greedily, best first. Empty when no window fits inside."""
+    from scipy.ndimage import gaussian_filter
+
+    img = np.nan_to_num(np.asarray(image, np.float64))
+    high = ((gaussian_filter(img, (band[0], band[0], 0)) - gaussian_filter(img, (band[1], band[1], 0))) ** 2).mean(-1)
+    h, w = high.shape
+    if h < size or w < size:
+        return []
+
+    def window_sums(a: np.ndarray) -> np.ndarray:  # sums of every size x size window, by the integral image
+        c = np.pad(np.cumsum(np.cumsum(a, 0), 1), ((1, 0), (1, 0)))
+        return c[size:, size:] - c[:-size, size:] - c[size:, :-size] + c[:-size, :-size]
+
+    energy = window_sums(high)
+    full = window_sums(np.asarray(inside, np.float64)) >= size * size - 0.5
+    step = max(1, size // 2)
+    candidates = sorted(((float(energy[y, x]), y, x) for y in range(0, h - size + 1, step)
+                         for x in range(0, w - size + 1, step) if full[y, x]), reverse=True)
+    chosen: list[tuple[int, int, int, int]] = []
+    for _, y, x in candidates:
+        if len(chosen) == count:
+            break
+        if all(y + size <= a or b <= y or x + size <= c or d <= x for a, b, c, d in chosen):
+            chosen.append((y, y + size, x, x + size))
+    return chosen
 
 
 def enlarge_factor(box: tuple[int, int, int, int], target: int = CROP_TARGET) -> int:

@@ -85,6 +85,9 @@ class FitSplatsSettings(Options):
         "weight of the surface term: the mean squared offset of each Gaussian's local position along its "
         "triangle's normal (in units of the triangle scale k), keeping the near field on the surface it "
         "moves with; 0 = off (the paper)"))
+    lambda_opacity: float = Field(0.0, ge=0.0, description=(
+        "weight of the mean opacity (the L1 term of 3DGS-MCMC, 0.01 there): Gaussians the training images do not "
+        "need fade out, and with relocate_every they are moved onto live ones; 0 = off (the paper)"))
     mask_band: float = Field(0.03, ge=0.0, description=(
         "contour band half-width as a fraction of the (cropped, see focus) image height (paper 0.03)"))
     focus: str = Field("garment", pattern="^(garment|all)$", description=(

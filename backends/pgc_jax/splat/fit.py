@@ -98,9 +98,9 @@ def _contributions(params, frames, parent, sh_mask, cam, background, bins, *, wi
 
 
 @partial(jax.jit, static_argnames=("width", "height", "tile", "near", "threads", "lambda_l1", "lambda_mask",
-                                   "lambda_surface"))
+                                   "lambda_surface", "lambda_opacity"))
 def _train_step(params, adam, t, lrs, frames, parent, sh_mask, cam, background, target, mask, band, bins, *, width,
-                height, tile, near, threads, lambda_l1, lambda_mask, lambda_surface):
+                height, tile, near, threads, lambda_l1, lambda_mask, lambda_surface, lambda_opacity):
     """One Adam step (number ``t`` >= 1) on one view; returns new params, Adam state, loss and the sRGB MSE."""
     n = params["means"].shape[0]
     ones = jnp.ones((n,), target.dtype)
@@ -112,7 +112,8 @@ def _train_step(params, adam, t, lrs, frames, parent, sh_mask, cam, background, 
         pred = linear_to_srgb(color)
         loss = lambda_l1 * jnp.mean(jnp.abs(pred - target)) + (1.0 - lambda_l1) * (1.0 - ssim(pred, target))
         surface = lambda_surface * jnp.mean(p["means"][:, 1] ** 2) if lambda_surface else 0.0
-        return loss + lambda_mask * jnp.mean(band * jnp.abs(mask - alpha)) + surface, pred
+        fade = lambda_opacity * jnp.mean(jax.nn.sigmoid(p["opacity_logits"])) if lambda_opacity else 0.0
+        return loss + lambda_mask * jnp.mean(band * jnp.abs(mask - alpha)) + surface + fade, pred
 
     (loss, pred), grads = jax.value_and_grad(loss_fn, has_aux=True)(params)
     new_p, new_m, new_v = {}, {}, {}
@@ -193,7 +194,7 @@ class JaxFitBackend(FitBackend):
             self.params, self.adam, float(t), lrs, self.frames, self.parent, _sh_mask(degree, self.dtype),
             handle.cam, handle.background, handle.target, handle.mask, handle.band, self._bins(handle),
             **self._kw(handle), lambda_l1=float(s.lambda_l1), lambda_mask=float(s.lambda_mask),
-            lambda_surface=float(s.lambda_surface))
+            lambda_surface=float(s.lambda_surface), lambda_opacity=float(s.lambda_opacity))
         return loss, mse
 
     def render(self, handle: _Arrays, degree: int, keep: np.ndarray | None = None) -> np.ndarray:

@@ -77,6 +77,8 @@ class TorchFitBackend(FitBackend):
             loss = loss + s.lambda_mask * (handle.band * (handle.mask - alpha).abs()).mean()
         if s.lambda_surface > 0:  # local column 1 is the triangle normal
             loss = loss + s.lambda_surface * (self.params["means"][:, 1] ** 2).mean()
+        if s.lambda_opacity > 0:
+            loss = loss + s.lambda_opacity * torch.sigmoid(self.params["opacity_logits"]).mean()
         for p in self.params.values():
             p.grad = None
         loss.backward()
