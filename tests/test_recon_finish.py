@@ -119,3 +119,28 @@ def test_missing_meshlab_extra_is_one_clear_error(monkeypatch):
     m = body_mesh(0.06)
     with pytest.raises(PGCPluginError, match=r"pip install 'pgc\[meshlab\]'"):
         finish_mod.unwrap(m.vertices, m.faces)
+
+
+def test_remesh_decimates_a_much_finer_input_first_and_keeps_its_shape(monkeypatch):
+    """Input over PREDECIMATE_ABOVE x the target is quadric-decimated to PREDECIMATE_TO x it before the
+    isotropic passes; the result has the target count and lies on the input surface within 1 mm (a bumpy
+    30 cm sphere of 164k vertices to 2000)."""
+    trimesh = pytest.importorskip("trimesh")
+    from pgc.sim.collision import signed_distance
+
+    m = trimesh.creation.icosphere(subdivisions=7, radius=0.3)
+    v, f = np.asarray(m.vertices), np.asarray(m.faces)
+    n = v / np.linalg.norm(v, axis=1, keepdims=True)
+    v = v + 0.02 * np.sin(6 * n[:, :1]) * np.cos(5 * n[:, 1:2]) * n
+    seen = []
+    original = finish_mod.decimate
+    monkeypatch.setattr(finish_mod, "decimate", lambda *a: seen.append(a[2]) or original(*a))
+    rv, rf = finish_mod.remesh(v, f, 2000)
+    assert seen == [finish_mod.PREDECIMATE_TO * 2000]
+    assert abs(len(rv) / 2000 - 1) <= 0.1
+    assert np.abs(signed_distance(rv, v, f)).max() < 1e-3              # edges are ~2.3 cm
+    assert np.abs(signed_distance(v[::50], rv, rf)).max() < 3e-3   # the other way: within a fraction of an edge
+    seen.clear()
+    small = trimesh.creation.icosphere(subdivisions=4, radius=0.3)
+    finish_mod.remesh(np.asarray(small.vertices), np.asarray(small.faces), 2000)
+    assert seen == []                                              # 2562 vertices: no decimation

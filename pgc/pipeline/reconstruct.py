@@ -25,7 +25,7 @@ from pgc.pipeline.settings_garment import GarmentSettings
 from pgc.pipeline.stage_io import load_gaussians, load_mesh, save_gaussians, save_mesh
 from pgc.types import GarmentAsset, Light, Material, Mesh
 
-CODE_VERSIONS = {"mesh": "2", "garment": "2", "fit_splats": "3", "base_color": "2", "material": "3"}
+CODE_VERSIONS = {"mesh": "3", "garment": "2", "fit_splats": "3", "base_color": "2", "material": "3"}
 """Version of the code computing each stage, part of its cache key: raise one when that stage's code changes
 what it computes, so no run reuses a result made by older code."""
 
