@@ -107,17 +107,12 @@ def _motion_section(view: RunView, f: _Figures) -> str:
     slug = view.motion.replace("/", "_")
     layers = {"gt": None if gt is None else gt[cam], "3dgs_only": pred["near"][cam], "pbr_only": pred["pbr"][cam],
               "hybrid": pred["hybrid"][cam]}
-    cells: list[str] = []
     heat = [f"<figure style='width:{(box[3] - box[2]) * k}px'><img src='{FIGURES}/error_scale.svg' "
             "alt='heatmap colour scale' style='width:100%'><figcaption>error heatmaps below each variant: 0 to "
             f"{figs.ERROR_MAX} linear RGB</figcaption></figure>"] if gt is not None else []
+    cells = _crop_cells(layers, box, k, f, f"{slug}_{t:04d}")
     for key, label in STRIP:
-        if layers[key] is None:
-            continue
-        name = f"{slug}_{t:04d}_{key}.png"
-        figs.save_png(f.path(name), figs.to_rgb8(figs.crop(layers[key], box, k)))
-        cells.append(f.img(name, label, "crop"))
-        if key != "gt" and gt is not None:
+        if layers[key] is not None and key != "gt" and gt is not None:
             hname = f"{slug}_{t:04d}_{key}_error.png"
             figs.save_png(f.path(hname), figs.heatmap_rgb8(figs.crop(layers[key], box, k), figs.crop(gt[cam], box, k)))
             psnr = (view.metrics or {}).get(key, {}).get("psnr")
@@ -161,6 +156,18 @@ def _motion_section(view: RunView, f: _Figures) -> str:
             + _relight_section(view, preds, box, k, f, slug, frame_ms))
 
 
+def _crop_cells(layers: dict[str, np.ndarray | None], box: tuple[int, int, int, int], k: int, f: _Figures,
+                stem: str) -> list[str]:
+    """One enlarged crop per layer of :data:`STRIP` that is present, written as ``STEM_KEY.png``."""
+    cells = []
+    for key, label in STRIP:
+        if layers[key] is not None:
+            name = f"{stem}_{key}.png"
+            figs.save_png(f.path(name), figs.to_rgb8(figs.crop(layers[key], box, k)))
+            cells.append(f.img(name, label, "crop"))
+    return cells
+
+
 def _detail_section(layers: dict[str, np.ndarray | None], pred: dict[str, np.ndarray], cam: int, f: _Figures,
                     stem: str) -> str:
     """Close-ups of the garment where the ground truth (else the hybrid) holds the most fine detail: the same
@@ -179,13 +186,7 @@ def _detail_section(layers: dict[str, np.ndarray | None], pred: dict[str, np.nda
     k = max(1, figs.DETAIL_TARGET // figs.DETAIL_SIZE)
     rows = []
     for i, box in enumerate(windows):
-        cells = []
-        for key, label in STRIP:
-            if layers[key] is None:
-                continue
-            name = f"{stem}_detail{i}_{key}.png"
-            figs.save_png(f.path(name), figs.to_rgb8(figs.crop(layers[key], box, k)))
-            cells.append(f.img(name, label, "crop"))
+        cells = _crop_cells(layers, box, k, f, f"{stem}_detail{i}")
         rows.append(f"<p class='note'>rows {box[0]}-{box[1]}, columns {box[2]}-{box[3]}, enlarged x{k}</p>"
                     f"<div class='strip'>{''.join(cells)}</div>")
     what = "ground truth" if layers["gt"] is not None else "hybrid"
