@@ -14,7 +14,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "it on the paper's three test motions (goalpost, spooky, arms-up), render the hybrid and "
                     "the ablations, render the ground truth on the same simulated geometry, and evaluate. "
                     "Writes OUT/metrics.json and OUT/report.html. Cached: a rerun resumes.",
-        epilog="presets: tiny (minutes; for tests), default (the demo scene, 32 views at 256 px)")
+        epilog="presets: tiny (minutes; for tests), default (the demo scene, 64 views at 256 px)")
     p.add_argument("--preset", default="default", choices=("tiny", "default"), help="scene and settings preset")
     p.add_argument("--out", default=None, help="output folder (default runs/demo-PRESET)")
     p.add_argument("--config", metavar="FILE", help="config TOML merged over the preset's settings")

@@ -25,7 +25,7 @@ forms:
                                 writes OUT_DIR/frame_####.npz (color, alpha, garment_mask, segmentation)
                                 and one sRGB PNG per frame and camera
 
-presets: tiny (6 views, 64 px, seconds), default (32 views, 256 px, the demo), large (64 views, 1024 px),
+presets: tiny (6 views, 64 px, seconds), default (64 views, 256 px, the demo), large (64 views, 1024 px),
          knit (32 views, 320 px, garment framing: a rib-knit tee resting on the body with relief, ribbed
          bands, seams, a patch pocket and folds as geometry)
 fabrics: cotton, fleece, knit, rib-knit, satin-like, lambertian
