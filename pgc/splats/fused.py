@@ -33,8 +33,7 @@ VECTOR_FLAGS = ("-fno-trapping-math",)
 """Lets GCC if-convert the pixel loops (select instead of branch); values are unchanged (no -ffast-math)."""
 DEFAULT_TILE = 16
 """Tile edge (pixels) of the kernel's binning; the image does not depend on it."""
-INPUTS = ("means", "rotmats", "scales", "opacities", "sh")
-__all__ = ["DEFAULT_TILE", "INPUTS", "KernelUnavailable", "Workspace", "available", "backward", "build", "camera_vector", "flags",
+__all__ = ["DEFAULT_TILE", "KernelUnavailable", "Workspace", "available", "backward", "build", "camera_vector", "flags",
            "forward", "load", "machine_peaks", "render_stats"]
 
 
@@ -127,6 +126,12 @@ class Rendered:
     depth_sum: np.ndarray
     stats: np.ndarray
     workspace: Workspace
+
+    @property
+    def depth(self) -> np.ndarray:
+        """Expected depth (H, W), metres: the weighted depth sum over alpha, 0 where alpha is 0."""
+        has = self.alpha > 0
+        return np.where(has, self.depth_sum / np.where(has, self.alpha, 1.0), 0.0)
 
 
 def _inputs(arrays: Sequence[np.ndarray]) -> list[np.ndarray]:

@@ -98,10 +98,8 @@ class JaxSplatRenderer(SplatRenderer):
                                               gaussians.scales, gaussians.opacities, sh)]
         out = fused.forward(arrays, fused.camera_vector(camera, self.options.near), bg.astype(dt), camera.height,
                             camera.width, (degree + 1) ** 2, fused.DEFAULT_TILE, self.threads)
-        has = out.alpha > 0
-        depth = np.where(has, out.depth_sum / np.where(has, out.alpha, 1.0), 0.0)
         return RenderOutput(color=out.color.astype(np.float32), alpha=out.alpha.astype(np.float32),
-                            depth=depth.astype(np.float32))
+                            depth=out.depth.astype(np.float32))
 
     def fit(self, capture: Capture, mesh: Mesh, settings: FitSplatsSettings | None = None,
             reporter: Reporter | None = None) -> SplatFit:
