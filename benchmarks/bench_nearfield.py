@@ -58,7 +58,7 @@ def main() -> None:
         for view in views:
             lay = renderer.layers(asset.garment.vertices, view.camera, asset.light, decision.far_source, body)
             h = compose(lay["near"], lay["far"], renderer.filter, decision.kernel_size,
-                        silhouette=renderer.settings.silhouette)
+                        silhouette=renderer.settings.silhouette, outline_fade=renderer.settings.outline_fade)
             interior = binary_erosion(garment_mask(view, capture.garment_label_ids) > 0.5, iterations=args.erode)
             if not interior.any():
                 continue

@@ -36,3 +36,24 @@ def test_tiny_demo_runs_end_to_end_and_reports_every_variant(tmp_path, monkeypat
     stamp = {p: p.stat().st_mtime for p in (out / "asset" / "stages").rglob("stage.json")}
     assert main(["demo", "--preset", "tiny", "--out", str(out), "--quiet"]) == 0
     assert {p: p.stat().st_mtime for p in (out / "asset" / "stages").rglob("stage.json")} == stamp
+
+
+def test_scene_presets_without_their_own_settings_take_the_default_demo_settings():
+    """`pgc demo --preset cotton|knit` runs another synth scene under demo_default.toml; tiny has its own."""
+    from pgc.pipeline.demo import demo_config
+    from pgc.synth.generate import PRESETS
+
+    default = demo_config("default").to_dict()
+    for name in ("cotton", "knit"):
+        assert name in PRESETS
+        assert demo_config(name).to_dict() == default
+    assert demo_config("tiny").to_dict() != default
+
+
+def test_the_demo_scene_has_near_field_detail_and_the_cotton_scene_keeps_the_earlier_default():
+    from pgc.synth.generate import get_preset
+
+    scene = get_preset("default")
+    assert (scene.framing, scene.detail, scene.fit, scene.views) == ("garment", "seams", "resting", 64)
+    cotton = get_preset("cotton")
+    assert (cotton.framing, cotton.detail, cotton.fit, cotton.resolution) == ("body", "none", "loose", 256)

@@ -7,7 +7,8 @@ import pytest
 
 from pgc.errors import PGCDataError
 from pgc.filtering import (KernelSelection, candidate_sizes, choose_kernel_by_error, choose_kernel_by_gradient,
-                           choose_kernel_by_metric, TrainingFrame, kernel_size_for_height, select_kernel)
+                           choose_kernel_by_metric, kernel_size_for_height, select_kernel, smallest_within,
+                           TrainingFrame)
 from pgc.registry import default_registry
 
 H, W = 72, 96
@@ -165,6 +166,37 @@ def test_metric_rule_ties_go_to_the_smaller_size_and_bad_frames_fail_clearly(fil
         choose_kernel_by_metric(filt, [], _psnr(), "psnr", [3])
     with pytest.raises(PGCDataError, match="choose_kernel_by_metric"):
         select_kernel(KernelSelection(mode="metric"), filt, same)
+
+
+def test_smallest_within_takes_the_smallest_size_near_the_best_score():
+    """Scores 10, 4, 1.2, 1.0 (lower is better): the range is 9; tolerance 0.1 allows 1.9, so 9 px; 0 is the
+    arg-min; 1 allows every size. Higher-is-better scores mirror it."""
+    loss = {3: 10.0, 5: 4.0, 9: 1.2, 15: 1.0}
+    assert smallest_within(loss, 0.1) == 9
+    assert smallest_within(loss, 0.0) == 15
+    assert smallest_within(loss, 1.0) == 3
+    assert smallest_within(loss, 0.02) == 15  # 1.2 > 1.0 + 0.18
+    gain = {k: -v for k, v in loss.items()}
+    assert smallest_within(gain, 0.1, higher_is_better=True) == 9
+    assert smallest_within({3: 2.0, 5: 2.0}, 0.0) == 3  # a tie goes to the smaller size
+    assert smallest_within({3: 20.0, 5: np.inf, 9: np.inf}, 0.5, higher_is_better=True) == 5
+
+
+def test_metric_rule_tolerance_gives_up_the_last_share_of_the_score(filt):
+    """The far field lacks the detail: PSNR rises with every larger kernel. With a tolerance of the whole
+    range the smallest size is taken; with 0 the best; in between, the smallest size the rule's formula
+    allows from the scores themselves."""
+    alpha, shading = garment()
+    image = shading + detail(6)
+    lacking = TrainingFrame(image, image, alpha, shading, alpha)
+    sizes = [3, 7, 15, 31]
+    best = choose_kernel_by_metric(filt, [lacking], _psnr(), "psnr", sizes, tolerance=0.0)
+    assert best.size == 31
+    assert choose_kernel_by_metric(filt, [lacking], _psnr(), "psnr", sizes, tolerance=1.0).size == 3
+    some = choose_kernel_by_metric(filt, [lacking], _psnr(), "psnr", sizes, tolerance=0.3)
+    top, bottom = max(best.scores.values()), min(best.scores.values())
+    allowed = [k for k in sizes if best.scores[k] >= top - 0.3 * (top - bottom)]
+    assert some.size == min(allowed) and some.scores == best.scores
 
 
 def test_metric_rule_names_a_metric_of_the_run():

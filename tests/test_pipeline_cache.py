@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from pgc.pipeline.cache import StageCache, array_key, content_key, file_key
+from pgc.pipeline.cache import StageCache, array_key, asset_key, content_key, file_key
 
 
 def test_content_key_is_stable_and_order_free():
@@ -61,3 +61,20 @@ def test_a_crash_inside_a_stage_leaves_the_previous_result_intact(tmp_path):
     assert cache.cached_key("s") == "k1"
     assert (cache.folder("s") / "v.txt").read_text() == "good"
     assert [p.name for p in tmp_path.iterdir()] == ["s"]  # no temporary folder left behind
+
+
+def test_the_asset_key_follows_the_asset_files_not_the_settings_or_timings_it_recorded(tmp_path):
+    """A render setting changed between runs rewrites the asset's manifest (it records the run config); the
+    simulations and renders keyed on the asset must not be recomputed for that, but must be for new files."""
+    manifest = {"schema_version": 1, "files": {"garment": "garment.obj"}, "hashes": {"garment": "ab12"},
+                "heldout_views": ["cam007"], "config": {"stages": {"render": {"outline_fade": 1.0}}},
+                "figures": {"seconds": {"mesh": 61.2}}}
+    (tmp_path / "manifest.json").write_text(json.dumps(manifest))
+    key = asset_key(tmp_path)
+    manifest.update(config={"stages": {"render": {"outline_fade": 0.0}}}, figures={"seconds": {"mesh": 58.0}})
+    (tmp_path / "manifest.json").write_text(json.dumps(manifest))
+    assert asset_key(tmp_path) == key
+    for field, value in (("hashes", {"garment": "cd34"}), ("heldout_views", ["cam015"])):
+        changed = dict(manifest, **{field: value})
+        (tmp_path / "manifest.json").write_text(json.dumps(changed))
+        assert asset_key(tmp_path) != key, field

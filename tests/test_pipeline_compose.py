@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from pgc.pipeline.compose import compose, far_field_gaussians, gaussian_uvs, unpremultiply
+from pgc.pipeline.compose import compose, far_field_gaussians, gaussian_uvs, outline_weight, unpremultiply
 from pgc.registry import default_registry
 from pgc.roles.splat_renderer import RenderOutput
 from pgc.splats.init import sample_on_mesh
@@ -80,6 +80,47 @@ def test_far_silhouette_takes_the_far_fields_shape_and_fades_the_detail_with_the
     np.testing.assert_allclose(near_shape.hybrid[both], frame.hybrid[both], atol=1e-6)
     with pytest.raises(ValueError, match="silhouette"):
         compose(near, far, filt, 7, silhouette="mesh")
+
+
+def test_outline_weight_is_the_distance_into_the_shape_over_the_width():
+    alpha = np.zeros((12, 20), np.float32)
+    alpha[2:10, 3:17] = 1.0  # 8 x 14 px
+    w = outline_weight(alpha, 3.0)
+    assert np.all(w[alpha == 0] == 0)
+    np.testing.assert_allclose(w[5, 3:9], [0.5 / 3, 1.5 / 3, 2.5 / 3, 1.0, 1.0, 1.0], atol=1e-6)  # from the left edge
+    np.testing.assert_allclose(w[2, 8], 0.5 / 3, atol=1e-6)  # the top row: half a pixel from the outline
+    assert np.all(outline_weight(alpha, 0.0) == 1) and outline_weight(alpha, 3.0).dtype == np.float32
+    assert np.all(np.isfinite(outline_weight(np.zeros((4, 4)), 2.0)))  # nothing covered: all zero
+    assert np.all(outline_weight(np.ones((4, 4)), 2.0) == 1)  # everything covered: no outline
+    edge = np.zeros((6, 6), np.float32)
+    edge[:, :4] = 1.0  # cut by the image's left border: only the right side is an outline
+    np.testing.assert_allclose(outline_weight(edge, 2.0)[2], [1, 1, 0.75, 0.25, 0, 0], atol=1e-6)
+
+
+@pytest.mark.parametrize("filt", filters(), ids=lambda f: type(f).__name__)
+def test_outline_fade_blends_the_hybrid_into_the_far_field_at_its_outline(filt):
+    """hybrid = S + w (l(S) + a h(G) - S) with w the outline weight over fade x kernel px: the far field itself
+    on the outline's first pixels, the unfaded hybrid deeper inside than the band, and the same alpha."""
+    rng = np.random.default_rng(3)
+    h, w, k = 32, 40, 5
+    far_alpha = np.zeros((h, w), np.float32)
+    far_alpha[4:28, 4:36] = 1.0
+    near_alpha = np.ones((h, w), np.float32)
+    far = RenderOutput((rng.uniform(0, 1, (h, w, 3)) * far_alpha[..., None]).astype(np.float32), far_alpha)
+    near = RenderOutput(rng.uniform(0, 1, (h, w, 3)).astype(np.float32), near_alpha)
+    plain = compose(near, far, filt, k, silhouette="far")
+    faded = compose(near, far, filt, k, silhouette="far", outline_fade=1.0)
+    np.testing.assert_array_equal(faded.hybrid_alpha, plain.hybrid_alpha)
+    weight = outline_weight(far_alpha, 1.0 * k)[..., None]
+    s = unpremultiply(far)
+    expected = np.clip(s + weight * (plain.low_far + plain.high_near - s), 0, None) * far_alpha[..., None]
+    np.testing.assert_allclose(faded.hybrid, expected, atol=1e-5)
+    deep = weight[..., 0] == 1
+    np.testing.assert_allclose(faded.hybrid[deep], plain.hybrid[deep], atol=1e-6)
+    np.testing.assert_allclose(faded.hybrid[4, 10], s[4, 10] + (0.5 / k) * (plain.hybrid[4, 10] - s[4, 10]),
+                               atol=1e-5)
+    near_shape = compose(near, far, filt, k, silhouette="near", outline_fade=1.0)  # no fade with the near alpha
+    np.testing.assert_array_equal(near_shape.hybrid, compose(near, far, filt, k, silhouette="near").hybrid)
 
 
 def test_eval_reads_each_variants_own_alpha_and_older_runs_still_evaluate():

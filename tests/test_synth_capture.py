@@ -272,7 +272,7 @@ def test_unknown_names_are_rejected():
     from pgc.synth.fabrics import get_fabric
     from pgc.synth.generate import get_preset
 
-    with pytest.raises(PGCDataError, match="presets: tiny, default, large"):
+    with pytest.raises(PGCDataError, match="presets: tiny, default, cotton, large, knit"):
         get_preset("huge")
     with pytest.raises(PGCDataError, match="fabrics: cotton"):
         get_fabric("silk")

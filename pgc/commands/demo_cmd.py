@@ -14,8 +14,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "it on the paper's three test motions (goalpost, spooky, arms-up), render the hybrid and "
                     "the ablations, render the ground truth on the same simulated geometry, and evaluate. "
                     "Writes OUT/metrics.json and OUT/report.html. Cached: a rerun resumes.",
-        epilog="presets: tiny (minutes; for tests), default (the demo scene, 64 views at 256 px)")
-    p.add_argument("--preset", default="default", choices=("tiny", "default"), help="scene and settings preset")
+        epilog="presets (pgc synth's, with the settings of pgc/presets/demo_PRESET.toml, else demo_default.toml):\n"
+               "  tiny     6 views at 64 px, about 30 s; for tests\n"
+               "  default  the demo scene: a striped cotton tee resting on the body, with seams, hems, a patch\n"
+               "           pocket and folds as geometry; 64 views at 192 px framing the garment; about 12 min\n"
+               "  cotton   the earlier default: the same tee without the detail, loose, 64 views at 256 px of\n"
+               "           the whole body (the garment about 90 px tall); about 7 min\n"
+               "  knit     a rib-knit tee with knit relief and fibre fuzz, 32 views at 320 px of the garment;\n"
+               "           about 40 min",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--preset", default="default", choices=("tiny", "default", "cotton", "knit"),
+                   help="scene and settings preset (default: default)")
     p.add_argument("--out", default=None, help="output folder (default runs/demo-PRESET)")
     p.add_argument("--config", metavar="FILE", help="config TOML merged over the preset's settings")
     p.add_argument("--seed", type=int, default=0, help="seed of the synthetic scene")

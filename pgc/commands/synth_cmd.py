@@ -9,7 +9,7 @@ import json
 from pgc.errors import PGCDataError
 
 USAGE = """\
-pgc synth OUT [--preset tiny|default|large|knit] [--garment tshirt|dress] [--fabric NAME]
+pgc synth OUT [--preset tiny|default|cotton|large|knit] [--garment tshirt|dress] [--fabric NAME]
           [--framing body|garment] [--detail none|relief|seams] [--fit loose|resting] [--seed N]
 pgc synth render-frames CAPTURE GARMENT_NPZ BODY_NPZ OUT_DIR [--spp N]"""
 
@@ -25,9 +25,13 @@ forms:
                                 writes OUT_DIR/frame_####.npz (color, alpha, garment_mask, segmentation)
                                 and one sRGB PNG per frame and camera
 
-presets: tiny (6 views, 64 px, seconds), default (64 views, 256 px, the demo), large (64 views, 1024 px),
-         knit (32 views, 320 px, garment framing: a rib-knit tee resting on the body with relief, ribbed
-         bands, seams, a patch pocket and folds as geometry)
+presets: tiny (6 views, 64 px, seconds)
+         default (the demo: 64 views at 192 px framing the garment; a striped cotton tee resting on the body,
+           with seams, ribbed hems, a patch pocket and folds as geometry)
+         cotton (the earlier default: 64 views at 256 px of the whole body; the same tee, loose, no detail)
+         large (64 views, 1024 px, whole body)
+         knit (32 views, 320 px, garment framing: a rib-knit tee resting on the body with knit relief, ribbed
+           bands, seams, a patch pocket and folds as geometry, and fibre fuzz)
 fabrics: cotton, fleece, knit, rib-knit, satin-like, lambertian
 details: none (the simulation mesh), relief (knit wales, ribbed bands, seams, pocket, folds), seams (the same
          without the knit wales)
@@ -41,7 +45,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                                    "light, body model and motions, albedo and depth per view.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("paths", nargs="+", metavar="OUT", help="output folder (or 'render-frames' and its paths)")
-    p.add_argument("--preset", default="default", help="tiny, default, large or knit (default: default)")
+    p.add_argument("--preset", default="default", help="tiny, default, cotton, large or knit (default: default)")
     p.add_argument("--garment", default=None, help="tshirt or dress (default: the preset's)")
     p.add_argument("--fabric", default=None, help="cotton, fleece, knit, rib-knit, satin-like, lambertian "
                                                   "(default: the preset's)")

@@ -20,7 +20,7 @@ from pgc.errors import PGCDataError
 from pgc.events import Reporter
 from pgc.io.atomic import write_json
 from pgc.io.timings import split_timings, write_timings
-from pgc.pipeline.cache import StageCache, array_key, content_key, file_key
+from pgc.pipeline.cache import StageCache, array_key, asset_key, content_key
 from pgc.pipeline.stage_io import save_npz
 from pgc.types import BodyMotion
 
@@ -65,7 +65,7 @@ def animate(asset_dir: str | Path, motion_spec: str, out: str | Path, cfg: RunCo
     capture = Path(capture_dir) if capture_dir else source_capture(asset.config)
     settings = cfg.stage("animate")
     motion = resolve_motion(motion_spec, capture, settings.seconds)
-    key = content_key("animate", file_key(asset_dir / "manifest.json"), motion_spec, settings,
+    key = content_key("animate", asset_key(asset_dir), motion_spec, settings,
                       cfg.role_key("simulator"), array_key(motion.vertices), array_key(motion.faces), motion.fps)
 
     def compute(folder: Path):

@@ -35,6 +35,18 @@ def content_key(*parts: Any) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+ASSET_KEY_FIELDS = ("schema_version", "files", "hashes", "heldout_views")
+"""The parts of an asset's manifest that decide what a later stage reads: its files, their sha256 and the
+views its splat fit held out; not the run configuration or the timings it also records."""
+
+
+def asset_key(asset_dir: str | Path) -> str:
+    """Content key of an asset folder (:data:`ASSET_KEY_FIELDS` of its ``manifest.json``): the same asset
+    files give the same key whichever settings of later stages the reconstruct run recorded."""
+    manifest = json.loads((Path(asset_dir) / "manifest.json").read_text())
+    return content_key("asset", {k: manifest.get(k) for k in ASSET_KEY_FIELDS})
+
+
 def file_key(path: str | Path, chunk: int = 1 << 20, exclude: tuple[str, ...] = ()) -> str:
     """sha256 (first 16 hex digits) of a file's bytes, or of every file below a folder (names included;
     lock files and ``exclude`` names at the top of the folder left out)."""

@@ -17,6 +17,9 @@ gives the garment its shape (``silhouette``): ``'near'``, the Gaussians' alpha (
 same Gaussians and both alphas agree), or ``'far'``, the far field's alpha, with the detail ``h(G)`` weighted
 by the near field's alpha (``l(S) + alpha_G h(G)``, so it fades out where the Gaussians do not cover). With
 the mesh as far field, ``'far'`` is the simulated mesh's own coverage (docs/pipeline.md measures both).
+With ``'far'``, ``outline_fade`` blends the hybrid into the far field over a band of the kernel's width
+inside that outline: there the near field's high band is made from Gaussians that stick out of or thin out
+at the deformed garment's edge, and the band belongs to the far field.
 """
 
 from __future__ import annotations
@@ -139,17 +142,36 @@ class HybridFrame:
     """(H, W) alpha the hybrid is composited with (G's or S's, see ``silhouette``)."""
 
 
+def outline_weight(alpha: np.ndarray, width: float) -> np.ndarray:
+    """(H, W) weight rising linearly from 0 at the outline of ``alpha > 0.5`` to 1 at ``width`` px inside it
+    (the distance of a covered pixel's centre to the nearest uncovered one, minus half a pixel); 0 outside;
+    all ones for ``width <= 0`` or when nothing is uncovered. The image border is not an outline."""
+    from scipy.ndimage import distance_transform_edt
+
+    covered = alpha > 0.5
+    if width <= 0 or covered.all():
+        return np.ones(alpha.shape, np.float32)
+    return np.clip((distance_transform_edt(covered) - 0.5) / width, 0.0, 1.0).astype(np.float32)
+
+
 def compose(near: RenderOutput, far: RenderOutput, filt: Filter, kernel_size: int,
-            background: np.ndarray | None = None, silhouette: str = "near") -> HybridFrame:
+            background: np.ndarray | None = None, silhouette: str = "near", outline_fade: float = 0.0) -> HybridFrame:
     """Combine the near-field and far-field renders of one view (both rendered over black); ``silhouette``
-    ('near' or 'far'): whose alpha shapes the hybrid (module docstring)."""
+    ('near' or 'far'): whose alpha shapes the hybrid (module docstring). ``outline_fade`` (with silhouette
+    'far'): within ``outline_fade * kernel_size`` px of the far field's outline the hybrid blends linearly
+    into the far field itself (:func:`outline_weight`), so the outline band shows no near-field detail; 0
+    turns it off."""
     if silhouette not in ("near", "far"):
         raise ValueError(f"compose: silhouette must be 'near' or 'far', not {silhouette!r}")
     g, s = unpremultiply(near), unpremultiply(far)
     high = filt.highpass(g, near.alpha, kernel_size)
     low = filt.lowpass(s, far.alpha, kernel_size)
     a, fa = near.alpha[..., None], far.alpha[..., None]
-    colour = np.clip(low + (high if silhouette == "near" else a * high), 0.0, None)
+    colour = low + (high if silhouette == "near" else a * high)
+    if silhouette == "far" and outline_fade > 0:
+        weight = outline_weight(far.alpha, outline_fade * kernel_size)[..., None]
+        colour = s + weight * (colour - s)
+    colour = np.clip(colour, 0.0, None)
     shape = a if silhouette == "near" else fa
     bg = np.zeros_like(colour) if background is None else np.broadcast_to(background, colour.shape)
 

@@ -8,6 +8,7 @@ is cached, so a rerun after an interruption resumes; ``metrics.json`` and ``repo
 from __future__ import annotations
 
 import time
+from dataclasses import asdict
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -21,9 +22,13 @@ PAPER_MOTIONS = ("goalpost", "spooky", "arms-up")
 
 
 def demo_config(preset: str, user_config: str | Path | None = None, registry=None) -> config_mod.RunConfig:
-    """The preset's settings (``pgc/presets/demo_<preset>.toml``) under the user's config file, validated."""
-    preset_file = resources.files("pgc") / "presets" / f"demo_{preset}.toml"
-    data = config_mod.load_toml(str(preset_file)) if preset_file.is_file() else {}
+    """The preset's settings (``pgc/presets/demo_<preset>.toml``; a scene preset without its own file takes
+    ``demo_default.toml``) under the user's config file, validated."""
+    presets = resources.files("pgc") / "presets"
+    preset_file = presets / f"demo_{preset}.toml"
+    if not preset_file.is_file():
+        preset_file = presets / "demo_default.toml"
+    data = config_mod.load_toml(str(preset_file))
     if user_config is not None:
         data = config_mod.deep_merge(data, config_mod.load_toml(user_config))
     return config_mod.resolve(data, registry, source=str(user_config or preset_file))
@@ -38,7 +43,7 @@ def run_demo(out: str | Path, preset: str = "default", user_config: str | Path |
     from pgc.pipeline.reconstruct import reconstruct
     from pgc.pipeline.render import choose_kernel, render_run
     from pgc.pipeline.report import write_report
-    from pgc.synth.generate import generate
+    from pgc.synth.generate import generate, get_preset
 
     reporter = reporter or Reporter.silent()
     out = Path(out)
@@ -52,7 +57,7 @@ def run_demo(out: str | Path, preset: str = "default", user_config: str | Path |
         return value
 
     capture = out / "capture"
-    synth_key = content_key("synth", preset, seed)
+    synth_key = content_key("synth", asdict(get_preset(preset)), seed)
     marker = capture / ".pgc-synth-key"
     if not (marker.is_file() and marker.read_text() == synth_key):
         timed("synth", lambda: generate(capture, preset=preset, seed=seed, reporter=reporter))

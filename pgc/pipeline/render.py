@@ -22,7 +22,7 @@ from pgc.events import Reporter
 from pgc.geometry.raster import rasterize
 from pgc.io.atomic import write_json
 from pgc.pipeline.animate import read_run
-from pgc.pipeline.cache import StageCache, array_key, content_key, file_key
+from pgc.pipeline.cache import StageCache, array_key, asset_key, content_key, file_key
 from pgc.pipeline.compose import (compose, far_field_gaussians, gaussian_uvs, hide_behind, unpremultiply,
                                   visible_surface_uvs)
 from pgc.pipeline.garment import body_occluder
@@ -31,7 +31,7 @@ from pgc.splats.binding import bind
 from pgc.types import Camera, Capture, GarmentAsset, Light, Mesh
 
 
-RENDER_VERSION = "3"
+RENDER_VERSION = "4"
 """Version of the code that computes the render stage: part of its cache key, raised whenever that code
 changes what it writes."""
 
@@ -113,7 +113,8 @@ class HybridRenderer:
               occluder: Mesh | None = None) -> dict[str, np.ndarray]:
         """Every output layer of one frame and camera, composed with ``decision``'s kernel and far field."""
         lay = self.layers(vertices, camera, light, decision.far_source, occluder)
-        h = compose(lay["near"], lay["far"], self.filter, decision.kernel_size, silhouette=self.settings.silhouette)
+        h = compose(lay["near"], lay["far"], self.filter, decision.kernel_size, silhouette=self.settings.silhouette,
+                    outline_fade=self.settings.outline_fade)
         return {"hybrid": h.hybrid, "near": h.near, "far": h.far, "pbr": lay["pbr"].color,
                 "alpha": h.alpha, "hybrid_alpha": h.hybrid_alpha, "pbr_alpha": lay["pbr"].alpha,
                 "low_far": h.low_far, "high_near": h.high_near}
@@ -157,7 +158,7 @@ def choose_kernel(renderer: HybridRenderer, capture, cfg: RunConfig) -> KernelDe
         if metric is not None:
             # one choice over all kernel views; the far fields are compared by the same metric
             choice = choose_kernel_by_metric(renderer.filter, per_view, metric, settings.kernel.metric,
-                                             settings.kernel.sizes)
+                                             settings.kernel.sizes, settings.kernel.tolerance)
             decisions[source] = (choice.scores[choice.size], choice.size, [choice] * len(per_view))
             continue
         choices = [select_kernel(settings.kernel, renderer.filter, frame) for frame in per_view]
@@ -206,7 +207,7 @@ def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
     renderer = HybridRenderer(asset, cfg)
     run_light = light or asset.light
     key = content_key("render", file_key(run_dir / "garment.npz"),
-                      file_key(Path(meta["asset"]) / "manifest.json"), settings, rotate_light,
+                      asset_key(meta["asset"]), settings, rotate_light,
                       [cfg.role_key(r) for r in ("splat_renderer", "pbr_renderer", "filter")
                        + (("metric",) if settings.kernel.mode == "metric" else ())],
                       {"radiance": run_light.radiance.tolist(), "rotation": run_light.rotation_deg,
