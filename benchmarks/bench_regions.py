@@ -24,12 +24,16 @@ PARTS = ("region", "interior", "outline")
 
 
 def parts(coverage: np.ndarray, alpha: np.ndarray, erode: int) -> dict[str, np.ndarray]:
-    """(H, W) float32 weights of the eval's region and of its interior and outline."""
+    """(H, W) float32 weights of the eval's region (:func:`pgc.pipeline.evaluate.eval_region`) and of its
+    interior and outline."""
     from scipy.ndimage import binary_erosion
 
-    region = (coverage > 0.5) | (alpha > 0.5)
-    interior = binary_erosion((coverage > 0.5) & (alpha > 0.5), iterations=erode) if erode else (
-        (coverage > 0.5) & (alpha > 0.5))
+    from pgc.pipeline.evaluate import eval_region
+
+    region = eval_region(coverage, alpha) > 0
+    interior = (coverage > 0.5) & (alpha > 0.5)
+    if erode:  # scipy erodes until nothing changes when iterations < 1
+        interior = binary_erosion(interior, iterations=erode)
     return {"region": region.astype(np.float32), "interior": interior.astype(np.float32),
             "outline": (region & ~interior).astype(np.float32)}
 

@@ -134,7 +134,7 @@ def evaluate_run(run_dir: str | Path, gt: str | Path, cfg: RunConfig, reporter: 
                 alpha = pred[layer_alpha(layer, pred)]
                 row = {"frame": t}
                 for name, metric in metrics.items():
-                    vals = [metric(pred[layer][c], target[c], _region(coverage[c], alpha[c]))
+                    vals = [metric(pred[layer][c], target[c], eval_region(coverage[c], alpha[c]))
                             for c in range(len(target))]
                     row[name] = float(np.mean(vals))
                 per_frame[key].append(row)
@@ -158,7 +158,8 @@ def layer_alpha(layer: str, frame) -> str:
     return "alpha"
 
 
-def _region(coverage: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+def eval_region(coverage: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """(H, W) float32 weights the metrics are restricted to: the true garment coverage or the variant's alpha."""
     return ((coverage > 0.5) | (alpha > 0.5)).astype(np.float32)
 
 

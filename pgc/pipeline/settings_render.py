@@ -8,11 +8,11 @@ from pgc.options import Options
 
 class RenderSettings(Options):
     kernel: KernelSelection = KernelSelection(mode="metric")
-    """How the low-pass kernel is set: by default the smallest size whose hybrid scores within 10 % of the best
-    LPIPS on the views the splat fit held out, at the capture pose (mode 'error' is the paper's rule). On the
-    knit scene it picks 11 px (novel-pose LPIPS 0.183 against 0.193 for the error rule's 5 px), on the default
-    scene 7 px, on the cotton scene 5 px (docs/pipeline.md). Without the LPIPS plugin among the run's metrics
-    the default falls back to mode 'error'."""
+    """How the low-pass kernel is set: by default the smallest size whose hybrid's LPIPS on the views the splat
+    fit held out, at the capture pose, is within 10 % of the score range from the best (mode 'error' is the
+    paper's rule). On the knit scene it picks 11 px (novel-pose LPIPS 0.183 against 0.193 for the error rule's
+    5 px), on the default scene 7 px, on the cotton scene 5 px (docs/pipeline.md). Without the LPIPS plugin
+    among the run's metrics the default falls back to mode 'error'."""
     views: int = Field(4, ge=1, description="capture cameras used for novel frames (evenly spread)")
     frame_stride: int = Field(10, ge=1, description="render every n-th simulated frame")
     texture_size: int = Field(256, ge=16, le=4096, description="far-field texture T_t resolution (texels)")
