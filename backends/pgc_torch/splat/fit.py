@@ -14,7 +14,7 @@ import numpy as np
 import torch
 
 from pgc.roles.splat_renderer import FitSplatsSettings
-from pgc.splats.fit import PARAMETERS, FitBackend, FitView, adam_update
+from pgc.splats.fit import ADAM_B1, ADAM_B2, ADAM_EPS, PARAMETERS, FitBackend, FitView
 from pgc.splats.sh import SH_C0
 from pgc.types import Camera, GaussianSet, Mesh
 from pgc_torch.threads import torch_threads
@@ -54,6 +54,7 @@ class TorchFitBackend(FitBackend):
         self.params = {n: torch.tensor(getattr(initial, n), dtype=torch.float32).requires_grad_(True)
                        for n in PARAMETERS}
         self.moments = {n: (torch.zeros_like(p), torch.zeros_like(p)) for n, p in self.params.items()}
+        self.scratch = {n: torch.empty_like(p) for n, p in self.params.items()}
 
     def prepare(self, view: FitView) -> _Arrays:
         def tensor(a: np.ndarray | None) -> torch.Tensor | None:
@@ -84,10 +85,8 @@ class TorchFitBackend(FitBackend):
         loss.backward()
         with torch.no_grad():
             for name, p in self.params.items():
-                lr = torch.as_tensor(lrs[name], dtype=torch.float32)
-                new, m, v = adam_update(p, p.grad, *self.moments[name], t, lr)
-                p.copy_(new)
-                self.moments[name] = (m, v)
+                adam_update_in_place(p, p.grad, *self.moments[name], t, torch.as_tensor(lrs[name], dtype=p.dtype),
+                                     self.scratch[name])
             mse = ((pred - handle.target) ** 2).mean()
         return loss.detach(), mse
 
@@ -125,3 +124,21 @@ class TorchFitBackend(FitBackend):
 
     def gaussians(self) -> GaussianSet:
         return GaussianSet(parent=self.parent.numpy(), **{n: p.detach().numpy() for n, p in self.params.items()})
+
+
+def adam_update_in_place(p: torch.Tensor, g: torch.Tensor, m: torch.Tensor, v: torch.Tensor, t: int,
+                         lr: torch.Tensor | float, scratch: torch.Tensor) -> None:
+    """:func:`pgc.splats.fit.adam_update` on contiguous torch tensors of one shape, in place: updates ``p``,
+    ``m`` and ``v``, overwrites ``g`` and ``scratch`` (a buffer of ``p``'s shape) and allocates nothing. The
+    same operations in the same order as the reference (the same bits); a per-coefficient ``lr`` (the SH bands'
+    (K, 1)) is spread over each row once instead of broadcast over (N, K, 3). On 18k Gaussians at SH degree 3
+    the reference took 10 ms a step, most of it in allocating and first touching its ten temporaries."""
+    shape = p.shape
+    p, g, m, v, scratch = (x.view(len(x), -1) for x in (p, g, m, v, scratch))
+    if isinstance(lr, torch.Tensor) and lr.ndim:
+        lr = lr.expand(shape[1:]).reshape(1, -1)
+    m.mul_(ADAM_B1).add_(torch.mul(g, 1.0 - ADAM_B1, out=scratch))
+    v.mul_(ADAM_B2).add_(torch.mul(g, 1.0 - ADAM_B2, out=scratch).mul_(g))
+    denom = torch.div(v, 1.0 - ADAM_B2 ** t, out=scratch).sqrt_().add_(ADAM_EPS)
+    step = torch.div(m, 1.0 - ADAM_B1 ** t, out=g).mul_(lr)
+    p.sub_(step.div_(denom))
