@@ -324,9 +324,11 @@ def main() -> None:
     if args.newton_backends:
         settings["newton"] = {**PRESETS[args.preset]["newton"], "backends": args.newton_backends.split(",")}
     records = run(args.preset, settings, studies=tuple(args.studies.split(",")))
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / f"simulator_{args.preset}{args.tag}.json"
+    path = Path(args.out) / f"simulator_{args.preset}{args.tag}.json"
+    if not records:  # e.g. only the Newton study, without Newton installed: keep the earlier record
+        print(f"no records: {path} left as it was")
+        return
+    path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(records, indent=1))
     print(f"wrote {path}")
 
