@@ -63,9 +63,13 @@ def test_torch_and_jax_follow_the_same_schedule_and_record_the_same_figures(scen
     assert abs(t.figures["psnr_heldout"] - j.figures["psnr_heldout"]) < 0.5
     assert abs(t.figures["psnr_heldout_full"] - j.figures["psnr_heldout_full"]) < 0.5
     # the JAX fit on the compiled kernel: the torch fit's kernel, JAX's binding, losses and Adam
+    # (the same kernel: the held-out PSNR along the fit agrees to 0.1 dB; after pruning and selection, discrete
+    # choices on this 40 px scene, to 0.5 dB as for the traced compositor)
     f = fits["jax-fused"]
     assert set(f.figures) == set(t.figures) and f.figures["iterations"] == 60
-    assert abs(t.figures["psnr_heldout"] - f.figures["psnr_heldout"]) < 0.25
+    for a, b in zip(t.figures["time_to_psnr"], f.figures["time_to_psnr"], strict=True):
+        assert abs(a["psnr_heldout"] - b["psnr_heldout"]) < 0.1
+    assert abs(t.figures["psnr_heldout"] - f.figures["psnr_heldout"]) < 0.5
 
 
 @pytest.mark.slow

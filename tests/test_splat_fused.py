@@ -265,7 +265,9 @@ def test_opacity_aware_binning_drops_tiles_but_no_pixel():
     color, alpha, _ = results["fused"][0]
     np.testing.assert_allclose(color, ref.color, atol=1e-5)
     np.testing.assert_allclose(alpha, ref.alpha, atol=1e-5)
+    # both float32: the cpp path rounds the screen means to float32 (~2e-6 px here), which these sub-pixel-thin
+    # discs (alpha slope up to ~1/DILATION per px) turn into up to ~1e-5 of alpha; each is within 1e-5 of float64
     for x, y in zip(results["fused"][0], results["cpp"][0]):
-        np.testing.assert_allclose(x, y, atol=1e-5 * max(1.0, float(np.abs(y).max())))
+        np.testing.assert_allclose(x, y, atol=2e-5 * max(1.0, float(np.abs(y).max())))
     for name, g, r in zip(FIELDS, results["fused"][1], results["cpp"][1]):
         assert float((g - r).norm() / r.norm()) < 1e-3, name

@@ -95,7 +95,7 @@ def test_fit_converges_and_resumes(tmp_path, compositor):
     assert len(losses) == 12 and all(np.isfinite(losses))
     assert losses[-1] < 0.5 * losses[0]
     train_psnr = [e["psnr_train_view"] for e in progress.events if "psnr_train_view" in e]
-    assert max(train_psnr[-3:]) > 27.0 and train_psnr[0] < 22.0
+    assert max(train_psnr[-3:]) > 27.0 and max(train_psnr[-3:]) > train_psnr[0] + 5.0
     g, f = fit.gaussians, fit.figures
     assert np.all(np.isin(mesh.face_labels[g.parent], [2]))  # garment only
     assert 0 < len(g) == f["gaussians"] < f["gaussians_selected"]

@@ -3,12 +3,14 @@
 Rendering contract (the 3DGS rasteriser)
 - Gaussians in world space (:class:`pgc.types.WorldGaussians`); camera in the OpenCV convention.
 - EWA splatting: 3D covariance ``R S S^T R^T`` projected with the Jacobian of the perspective map at the
-  Gaussian's centre, plus a 0.3 px^2 low-pass dilation on the diagonal of the 2D covariance; Gaussians with
-  camera depth below ``near`` (default 0.01 m) are culled; footprint radius ``ceil(3 sqrt(lambda_max))``.
+  Gaussian's centre, plus a 0.1 px^2 low-pass filter (the pixel's box) on the diagonal of the 2D covariance,
+  and the opacity times the coverage ``sqrt(det(Sigma2D - 0.1 I) / det(Sigma2D))`` that keeps the Gaussian's
+  image-plane mass (Mip-Splatting's 2D filter); Gaussians with camera depth below ``near`` (default 0.01 m) are
+  culled; footprint radius ``ceil(3 sqrt(lambda_max))``.
 - Colour from real SH up to degree 3 (3DGS constants and sign convention), viewing direction
   ``normalize(mean - camera_centre)``, colour = SH + 0.5 clamped at 0.
 - Pixel centres at (x + 0.5, y + 0.5). Front-to-back compositing in increasing depth:
-  ``alpha_i = min(0.99, opacity_i exp(-0.5 d^T Sigma2D^-1 d))``, contributions with ``alpha_i < 1/255``
+  ``alpha_i = min(0.99, opacity_i coverage_i exp(-0.5 d^T Sigma2D^-1 d))``, contributions with ``alpha_i < 1/255``
   skipped, stop once transmittance falls below 1e-4.
 - Output :class:`RenderOutput`: ``color`` (H, W, 3) = sum of weighted colours + T_final * background,
   ``alpha`` (H, W) = 1 - T_final, ``depth`` (H, W) = sum of weighted camera depths / alpha (0 where alpha is 0).

@@ -3,9 +3,11 @@
 // Loaded through ctypes by pgc_torch.splat.fused; arrays are contiguous, row-major.
 //
 // Contract (pgc/splats/projection.py, pgc/splats/reference.py): scales clamped to [0, 1e4]; x_c = R x + t,
-// culled when z < near; Sigma2D = J W Sigma W^T J^T + 0.3 I; r = ceil(3 sqrt(lambda_max)); pixel centres
-// (x + 0.5, y + 0.5) inside the box |dx| <= r, |dy| <= r; alpha = min(0.99, o exp(power)), skipped below
-// 1/255; a pixel stops before its transmittance would fall below 1e-4; colour = SH + 0.5 clamped at 0.
+// culled when z < near; Sigma2D = J W Sigma W^T J^T + 0.1 I; the opacity times the coverage
+// k = sqrt(det(J W Sigma W^T J^T) / det(Sigma2D)) (Mip-Splatting's 2D filter); r = ceil(3 sqrt(lambda_max));
+// pixel centres (x + 0.5, y + 0.5) inside the box |dx| <= r, |dy| <= r; alpha = min(0.99, o k exp(power)),
+// skipped below 1/255 (a Gaussian with o k < 1/255 is culled); a pixel stops before its transmittance would
+// fall below 1e-4; colour = SH + 0.5 clamped at 0.
 //
 // Per Gaussian (projection, SH, their backward) the arithmetic is float64; per pixel-Gaussian pair it is
 // the input type S (float32: 8-wide AVX2 lanes with a polynomial exp accurate to ~2e-7 relative).
@@ -13,6 +15,10 @@
 // that may reach alpha >= 1/255 (the opacity-aware ellipse q <= 2 ln(255 o), with a margin); a Gaussian is
 // binned only to the tiles of its box that hold candidates, and a chunk of 8 pixels starts at a row's first
 // candidate (any column), so small footprints fill the lanes. The exact per-pixel test decides as before.
+// Memory: each tile-list entry holds a copy of its Gaussian's screen-space parameters and its candidate rows in
+// the tile, in tile-list order, so the pixel loops stream through the entries (with software prefetch of the
+// next entries and their row ranges) instead of gathering per-rank arrays: per entry the loops run only a few
+// 8-pixel chunks (footprints of 3-5 px at 50k Gaussians), and the gathers' latency was most of their time.
 // Determinism: every pixel's arithmetic is independent of the thread count; tile lists are a counting sort
 // in rank order (ranks increase within a tile); the backward writes one gradient row per
 // (tile, Gaussian) entry into slots ordered by Gaussian, then tile, and sums each Gaussian's rows in that
@@ -32,7 +38,7 @@
 
 namespace {
 
-constexpr double DILATION = 0.3, MAX_SCALE = 1e4;
+constexpr double DILATION = 0.1, MAX_SCALE = 1e4;
 constexpr double SH_C0 = 0.28209479177387814, SH_C1 = 0.4886025119029199;
 constexpr double SH_C2[5] = {1.0925484305920792, -1.0925484305920792, 0.31539156525252005, -1.0925484305920792,
                              0.5462742152960396};
@@ -79,6 +85,7 @@ struct Inputs {
 // Projection of one Gaussian (float64), with the intermediates its backward needs.
 struct Proj {
   double pc[3], J[6], WR[9], sc[3], Tm[6], a, b, c, det, conic[3], u, v, r, dir[3], inv_norm, raw[3];
+  double coverage;  // sqrt(det(Tm Tm^T) / det): the factor of the opacity
   bool valid;
 };
 
@@ -184,6 +191,10 @@ void project_one(const Inputs<S>& in, const CameraParams& cam, int64_t i, Proj& 
   p.b = p.Tm[0] * p.Tm[3] + p.Tm[1] * p.Tm[4] + p.Tm[2] * p.Tm[5];
   p.c = p.Tm[3] * p.Tm[3] + p.Tm[4] * p.Tm[4] + p.Tm[5] * p.Tm[5] + DILATION;
   p.det = p.a * p.c - p.b * p.b;
+  // det(Tm Tm^T) as the squared 2x2 minors of Tm (Cauchy-Binet): no cancellation for needles
+  const double m0 = p.Tm[1] * p.Tm[5] - p.Tm[2] * p.Tm[4], m1 = p.Tm[2] * p.Tm[3] - p.Tm[0] * p.Tm[5],
+               m2 = p.Tm[0] * p.Tm[4] - p.Tm[1] * p.Tm[3];
+  p.coverage = std::sqrt((m0 * m0 + m1 * m1 + m2 * m2) / p.det);
   p.conic[0] = p.c / p.det;
   p.conic[1] = -p.b / p.det;
   p.conic[2] = p.a / p.det;
@@ -216,7 +227,19 @@ void project_one_backward(const Inputs<S>& in, const CameraParams& cam, int64_t 
     for (int c = 0; c < 2; ++c) QG[2 * r + c] = Q[2 * r] * G[c] + Q[2 * r + 1] * G[2 + c];
   for (int r = 0; r < 2; ++r)
     for (int c = 0; c < 2; ++c) dS[2 * r + c] = -(QG[2 * r] * Q[c] + QG[2 * r + 1] * Q[2 + c]);
-  const double Gc[4] = {dS[0], 0.5 * (dS[1] + dS[2]), 0.5 * (dS[1] + dS[2]), dS[3]};
+  double Gc[4] = {dS[0], 0.5 * (dS[1] + dS[2]), 0.5 * (dS[1] + dS[2]), dS[3]};
+  // coverage k = sqrt(D0 / D), D0 = det(Sigma2D - s I), D = det(Sigma2D): d(k^2)/dSigma2D =
+  // ((1 - k^2) adj(Sigma2D - s I) - k^2 s I) / D with 1 - k^2 = s (a + c - s) / D; dk = d(k^2) / (2 k).
+  // Only Gaussians with o k >= 1/255 reach here, so k > 0.
+  const double g_cov = gs[8] * double(in.opac[i]);
+  if (g_cov != 0.0 && p.coverage > 0.0) {
+    const double k2 = p.coverage * p.coverage, rest = DILATION * (p.a + p.c - DILATION) / p.det;
+    const double f = g_cov / (2.0 * p.coverage * p.det);
+    Gc[0] += f * (rest * (p.c - DILATION) - k2 * DILATION);
+    Gc[1] -= f * rest * p.b;
+    Gc[2] -= f * rest * p.b;
+    Gc[3] += f * (rest * (p.a - DILATION) - k2 * DILATION);
+  }
   double dTm[6];  // 2 Gc Tm
   for (int r = 0; r < 2; ++r)
     for (int c = 0; c < 3; ++c) dTm[3 * r + c] = 2.0 * (Gc[2 * r] * p.Tm[c] + Gc[2 * r + 1] * p.Tm[3 + c]);
@@ -272,8 +295,24 @@ void project_one_backward(const Inputs<S>& in, const CameraParams& cam, int64_t 
     const double gd = p.inv_norm * (clamped ? gdir[k] : gdir[k] - p.dir[k] * dot);
     d_means[3 * i + k] = S(gm + gd);
   }
-  d_opac[i] = S(gs[8]);
+  d_opac[i] = S(gs[8] * p.coverage);
 }
+
+// One Gaussian in screen space: mean, footprint radius, conic, opacity, colour, depth.
+template <typename S>
+struct Splat {
+  S gx, gy, r, A, B, C, o, col0, col1, col2, depth;
+};
+
+// One tile-list entry as the pixel loops read it: a copy of the Gaussian and its candidate rows inside the tile,
+// stored in tile-list order so that the loops stream through the entries (64 bytes for float) instead of
+// gathering each Gaussian's parameters by rank.
+template <typename S>
+struct Entry {
+  Splat<S> s;
+  int32_t ya, yb;  // candidate pixel rows inside the tile (global)
+  int64_t rows;    // offset of row ya's column range in Workspace::xr
+};
 
 // Everything the backward needs from the forward; owned by the Python side through an opaque handle.
 template <typename S>
@@ -281,11 +320,9 @@ struct Workspace {
   int H = 0, W = 0, tile = 0, tiles_x = 0, tiles_y = 0;
   std::vector<int64_t> order;              // rank -> Gaussian index, increasing depth (ties by index)
   std::vector<int64_t> rank_of;            // Gaussian index -> rank (-1: culled)
-  std::vector<S> mx, my, qa, qb, qc, op, c0, c1, c2, dep, rad;  // per rank (SoA)
-  std::vector<int32_t> ry0, ry1;           // per rank: candidate pixel rows [ry0, ry1] (global, in the image)
-  std::vector<int64_t> roff;               // per rank: offset of its rows' column ranges in ``xr``
   std::vector<int32_t> xr;                 // per candidate row: candidate columns [xa, xb] (empty when xa > xb)
-  std::vector<int64_t> offsets, ids;       // tile lists of ranks (ranks increase within a tile)
+  std::vector<int64_t> offsets;            // tile t's entries: offsets[t] .. offsets[t + 1] - 1
+  std::vector<Entry<S>> ent;               // tile lists (ranks increase within a tile)
   std::vector<int64_t> ioff, slot;         // entry slots: Gaussian i owns ioff[i] .. ioff[i + 1] - 1 (tile order);
                                            // slot[j] = the slot of tile-list position j
   std::vector<S> Tfinal;                   // (H, W) final transmittance
@@ -323,21 +360,21 @@ inline double alpha_tau(double o) {
   return tau * (1.0 + 1e-3) + 1e-3;
 }
 
-// Candidate columns [xa, xb] (global) of the pixel rows [ry0, ry1] of the Gaussian of rank g: pixels whose
+// Candidate columns [xa, xb] (global) of the pixel rows [ry0, ry1] of the Gaussian sp: pixels whose
 // centre may lie in its footprint box (columns [bx0, bx1], one pixel of margin) and may have alpha >= 1/255 (the
 // ellipse q <= tau solved for dx, x = gx - (B / A) dy +- sqrt(((B^2 - A C) dy^2 + A tau) / A^2), with one pixel of
 // margin; the exact test is per pixel). Rows the per-pixel test rejects (float |dy| > r) get an empty range.
 template <typename S>
-inline void row_columns(const Workspace<S>& w, int64_t g, double tau, int64_t bx0, int64_t bx1, int32_t* out) {
-  const double A = w.qa[g], B = w.qb[g], C = w.qc[g], gx = w.mx[g];
+inline void row_columns(const Splat<S>& sp, int ry0, int ry1, double tau, int64_t bx0, int64_t bx1, int32_t* out) {
+  const double A = sp.A, B = sp.B, C = sp.C, gx = sp.gx;
   const bool ellipse = A > 0.0;
   const double kb = ellipse ? B / A : 0.0, k2 = ellipse ? (B * B - A * C) / (A * A) : 0.0;
   const double k0 = ellipse ? tau / A : 0.0;
-  for (int y = w.ry0[g]; y <= w.ry1[g]; ++y, out += 2) {
+  for (int y = ry0; y <= ry1; ++y, out += 2) {
     out[0] = 1;
     out[1] = 0;
-    const S dy = S(y) + S(0.5) - w.my[g];
-    if (std::fabs(dy) > w.rad[g]) continue;
+    const S dy = S(y) + S(0.5) - sp.gy;
+    if (std::fabs(dy) > sp.r) continue;
     int64_t xa = bx0, xb = bx1;
     if (ellipse) {
       const double d = dy, h2 = k2 * d * d + k0;
@@ -352,30 +389,25 @@ inline void row_columns(const Workspace<S>& w, int64_t g, double tau, int64_t bx
   }
 }
 
-// One Gaussian in screen space, as the pixel loops read it (rank order copies of the workspace).
+// Prefetches tile-list entry `far` and the candidate rows of entry `near` (fetched as `far` earlier): the
+// per-entry pixel loops are short and would otherwise wait for both (the rows are a gather, and the backward
+// walks the entries in reverse, which the hardware prefetchers did not follow).
 template <typename S>
-struct Splat {
-  S gx, gy, r, A, B, C, o, col0, col1, col2, depth;
-};
-
-// Gaussian g of the workspace as a Splat.
-template <typename S>
-inline Splat<S> splat_of(const Workspace<S>& w, int64_t g) {
-  return {w.mx[g], w.my[g], w.rad[g], w.qa[g], w.qb[g], w.qc[g], w.op[g], w.c0[g], w.c1[g], w.c2[g], w.dep[g]};
+inline void prefetch_entries(const Workspace<S>& w, int64_t far, int64_t near) {
+  __builtin_prefetch(&w.ent[far]);
+  __builtin_prefetch(w.xr.data() + 2 * w.ent[near].rows);
 }
 
-// Calls chunk(dy, c, k) for every LANES-pixel chunk of Gaussian g's candidate columns (its per-row spans) inside
-// the tile at (x0, y0) of tw x th pixels, row stride `stride`: dy is the row's offset from the mean, c the chunk's
-// first column in the tile, k its index in the tile buffers. The forward and the backward walk the same chunks.
+// Calls chunk(dy, c, k) for every LANES-pixel chunk of entry e's candidate columns (its per-row spans) inside the
+// tile at (x0, y0) of width tw, row stride `stride`: dy is the row's offset from the mean, c the chunk's first
+// column in the tile, k its index in the tile buffers. The forward and the backward walk the same chunks.
 template <typename S, typename F>
-inline void for_each_chunk(const Workspace<S>& w, int64_t g, S gy, int x0, int y0, int tw, int th, int stride,
-                           F&& chunk) {
-  const int ya = std::max(w.ry0[g], y0), yb = std::min(w.ry1[g], y0 + th - 1);
-  const int32_t* xr = w.xr.data() + 2 * (w.roff[g] + ya - w.ry0[g]);
-  for (int y = ya; y <= yb; ++y, xr += 2) {
+inline void for_each_chunk(const Workspace<S>& w, const Entry<S>& e, int x0, int y0, int tw, int stride, F&& chunk) {
+  const int32_t* xr = w.xr.data() + 2 * e.rows;
+  for (int y = e.ya; y <= e.yb; ++y, xr += 2) {
     const int ca = std::max(xr[0], x0) - x0, cb = std::min(xr[1], x0 + tw - 1) - x0;
     if (ca > cb) continue;
-    const S dy = S(y) + S(0.5) - gy;
+    const S dy = S(y) + S(0.5) - e.s.gy;
     for (int c = ca; c <= cb; c += LANES) chunk(dy, c, (y - y0) * stride + c);
   }
 }
@@ -406,12 +438,45 @@ inline void composite_chunk(const Splat<S>& s, S dy, const S* px, S* T, S* p0, S
   }
 }
 
-// Backward of one chunk, back to front: restores the transmittance in front of the Gaussian (T), the colour and
-// depth composited behind it (q0..qz), and adds its screen-space gradient to the per-lane sums acc (NG x LANES).
+constexpr int NG = 10;  // screen gradient per entry: mean2d x, y; conic a, b, c; colour r, g, b; opacity; depth
+
+// Per-lane sums (NG x LANES) of one entry, added up in a fixed order at its end (generic: lane order). With
+// gp = dL/dpower, sums 0-4 are gp dx, gp dy, gp dx^2, gp dx dy, gp dy^2 (the mean and conic gradients follow from
+// them and the entry's conic in `reduce`, which saves per-pixel work), 5-9 the colour, opacity and depth gradients.
+template <typename S>
+struct LaneSums {
+  S v[NG * LANES];
+  void zero() { std::fill(v, v + NG * LANES, S(0)); }
+  void lane_sums(S* t) const {
+    for (int q = 0; q < NG; ++q) {
+      S sum = S(0);
+      for (int l = 0; l < LANES; ++l) sum += v[q * LANES + l];
+      t[q] = sum;
+    }
+  }
+};
+
+// The entry's screen-space gradient (NG) from its lane sums.
+template <typename S>
+inline void reduce(const LaneSums<S>& sums, const Splat<S>& s, S* out) {
+  S t[NG];
+  sums.lane_sums(t);
+  out[0] = s.A * t[0] + s.B * t[1];  // dpower/dmean = (A dx + B dy, B dx + C dy)
+  out[1] = s.B * t[0] + s.C * t[1];
+  out[2] = S(-0.5) * t[2];
+  out[3] = -t[3];
+  out[4] = S(-0.5) * t[4];
+  for (int q = 5; q < NG; ++q) out[q] = t[q];
+}
+
+// Backward of one chunk, back to front: restores the transmittance in front of the Gaussian (T, one division),
+// the colour and depth composited behind it (q0..qz: q + a (c - q) on the lanes it was composited on, where
+// a = 0 elsewhere leaves q unchanged), and adds its screen-space gradient to the per-lane sums.
 template <typename S>
 inline void backward_chunk(const Splat<S>& s, S dy, const S* px, int32_t jj, const int32_t* lp, S* T, S* q0, S* q1,
                            S* q2, S* qz, const S* Tf, const S* gT, const S* gc0, const S* gc1, const S* gc2,
-                           const S* gd, S* acc) {
+                           const S* gd, LaneSums<S>& sums) {
+  S* acc = sums.v;
 #pragma omp simd
   for (int l = 0; l < LANES; ++l) {
     const S dx = px[l] - s.gx;
@@ -420,28 +485,29 @@ inline void backward_chunk(const Splat<S>& s, S dy, const S* px, int32_t jj, con
     const S oG = s.o * G;
     const S a = oG < S(0.99) ? oG : S(0.99);
     const bool ok = (jj < lp[l]) & (std::fabs(dx) <= s.r) & (oG >= S(1.0 / 255.0));
-    const S one_m = S(1) - a;
-    const S Tc = ok ? T[l] / one_m : T[l];  // transmittance in front of this Gaussian
-    const S wgt = ok ? a * Tc : S(0);
+    const S inv = ok ? S(1) / (S(1) - a) : S(1);
+    const S Tc = T[l] * inv;  // transmittance in front of this Gaussian
+    const S am = ok ? a : S(0);
+    const S wgt = am * Tc;
     acc[5 * LANES + l] += wgt * gc0[l];
     acc[6 * LANES + l] += wgt * gc1[l];
     acc[7 * LANES + l] += wgt * gc2[l];
     acc[9 * LANES + l] += wgt * gd[l];
-    const S g_a = Tc * ((s.col0 - q0[l]) * gc0[l] + (s.col1 - q1[l]) * gc1[l] + (s.col2 - q2[l]) * gc2[l] +
-                        (s.depth - qz[l]) * gd[l]) - Tf[l] / one_m * gT[l];
-    q0[l] = ok ? a * s.col0 + one_m * q0[l] : q0[l];
-    q1[l] = ok ? a * s.col1 + one_m * q1[l] : q1[l];
-    q2[l] = ok ? a * s.col2 + one_m * q2[l] : q2[l];
-    qz[l] = ok ? a * s.depth + one_m * qz[l] : qz[l];
+    const S d0 = s.col0 - q0[l], d1 = s.col1 - q1[l], d2 = s.col2 - q2[l], dz = s.depth - qz[l];
+    const S g_a = Tc * (d0 * gc0[l] + d1 * gc1[l] + d2 * gc2[l] + dz * gd[l]) - Tf[l] * inv * gT[l];
+    q0[l] += am * d0;
+    q1[l] += am * d1;
+    q2[l] += am * d2;
+    qz[l] += am * dz;
     T[l] = Tc;
     const S ga = (ok & (oG <= S(0.99))) ? g_a : S(0);  // clamped alpha: no gradient to o or G
     acc[8 * LANES + l] += ga * G;
     const S gp = ga * a;  // dL/dpower
-    acc[0 * LANES + l] += gp * (s.A * dx + s.B * dy);
-    acc[1 * LANES + l] += gp * (s.B * dx + s.C * dy);
-    acc[2 * LANES + l] += gp * S(-0.5) * dx * dx;
-    acc[3 * LANES + l] += gp * (-dx * dy);
-    acc[4 * LANES + l] += gp * S(-0.5) * dy * dy;
+    acc[0 * LANES + l] += gp * dx;
+    acc[1 * LANES + l] += gp * dy;
+    acc[2 * LANES + l] += gp * dx * dx;
+    acc[3 * LANES + l] += gp * dx * dy;
+    acc[4 * LANES + l] += gp * dy * dy;
   }
 }
 
@@ -508,11 +574,34 @@ inline void composite_chunk<float>(const Splat<float>& s, float dy, const float*
                                                            _mm256_castsi256_ps(_mm256_set1_epi32(1)), stop)));
 }
 
+// One vector per sum, added to by FMA; at the entry's end the lanes are summed by a fixed pairwise tree.
+template <>
+struct LaneSums<float> {
+  __m256 v[NG];
+  void zero() {
+    for (__m256& x : v) x = _mm256_setzero_ps();
+  }
+  // horizontal adds, eight sums at a time
+  void lane_sums(float* t) const {
+    const __m256 z = _mm256_setzero_ps();
+    _mm256_storeu_ps(t, sum8(v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]));
+    alignas(32) float rest[LANES];
+    _mm256_store_ps(rest, sum8(v[8], v[9], z, z, z, z, z, z));
+    t[8] = rest[0];
+    t[9] = rest[1];
+  }
+  static __m256 sum8(__m256 a, __m256 b, __m256 c, __m256 d, __m256 e, __m256 f, __m256 g, __m256 h) {
+    const __m256 abcd = _mm256_hadd_ps(_mm256_hadd_ps(a, b), _mm256_hadd_ps(c, d));  // per 128-bit half
+    const __m256 efgh = _mm256_hadd_ps(_mm256_hadd_ps(e, f), _mm256_hadd_ps(g, h));
+    return _mm256_add_ps(_mm256_permute2f128_ps(abcd, efgh, 0x20), _mm256_permute2f128_ps(abcd, efgh, 0x31));
+  }
+};
+
 template <>
 inline void backward_chunk<float>(const Splat<float>& s, float dy, const float* px, int32_t jj, const int32_t* lp,
                                   float* T, float* q0, float* q1, float* q2, float* qz, const float* Tf,
                                   const float* gT, const float* gc0, const float* gc1, const float* gc2,
-                                  const float* gd, float* acc) {
+                                  const float* gd, LaneSums<float>& sums) {
   __m256 dx, G, oG;
   chunk_alpha(s, dy, px, dx, G, oG);
   const __m256 a = _mm256_min_ps(oG, _mm256_set1_ps(0.99f));
@@ -521,42 +610,41 @@ inline void backward_chunk<float>(const Splat<float>& s, float dy, const float* 
   const __m256 ok = _mm256_and_ps(_mm256_and_ps(behind, in_box(s, dx)),
                                   _mm256_cmp_ps(oG, _mm256_set1_ps(1.0f / 255.0f), _CMP_GE_OQ));
   if (_mm256_testz_ps(ok, ok)) return;  // no lane composited this Gaussian: nothing changes
-  const __m256 one_m = _mm256_sub_ps(_mm256_set1_ps(1.0f), a);
-  const __m256 t = _mm256_loadu_ps(T);
-  const __m256 Tc = _mm256_blendv_ps(t, _mm256_div_ps(t, one_m), ok);
-  const __m256 wgt = _mm256_and_ps(ok, _mm256_mul_ps(a, Tc));
+  const __m256 one = _mm256_set1_ps(1.0f);
+  const __m256 inv = _mm256_blendv_ps(one, _mm256_div_ps(one, _mm256_sub_ps(one, a)), ok);
+  const __m256 Tc = _mm256_mul_ps(_mm256_loadu_ps(T), inv);
+  const __m256 am = _mm256_and_ps(ok, a);
+  const __m256 wgt = _mm256_mul_ps(am, Tc);
   const __m256 g0 = _mm256_loadu_ps(gc0), g1 = _mm256_loadu_ps(gc1), g2 = _mm256_loadu_ps(gc2),
                gz = _mm256_loadu_ps(gd);
-  auto add = [&](int q, __m256 v) {
-    _mm256_storeu_ps(acc + q * LANES, _mm256_add_ps(_mm256_loadu_ps(acc + q * LANES), v));
-  };
-  add(5, _mm256_mul_ps(wgt, g0));
-  add(6, _mm256_mul_ps(wgt, g1));
-  add(7, _mm256_mul_ps(wgt, g2));
-  add(9, _mm256_mul_ps(wgt, gz));
-  const __m256 c0 = _mm256_set1_ps(s.col0), c1 = _mm256_set1_ps(s.col1), c2 = _mm256_set1_ps(s.col2),
-               cz = _mm256_set1_ps(s.depth);
+  auto add = [&](int q, __m256 x, __m256 y) { sums.v[q] = _mm256_fmadd_ps(x, y, sums.v[q]); };
+  add(5, wgt, g0);
+  add(6, wgt, g1);
+  add(7, wgt, g2);
+  add(9, wgt, gz);
   const __m256 r0 = _mm256_loadu_ps(q0), r1 = _mm256_loadu_ps(q1), r2 = _mm256_loadu_ps(q2), rz = _mm256_loadu_ps(qz);
-  __m256 dot = _mm256_mul_ps(_mm256_sub_ps(c0, r0), g0);
-  dot = _mm256_fmadd_ps(_mm256_sub_ps(c1, r1), g1, dot);
-  dot = _mm256_fmadd_ps(_mm256_sub_ps(c2, r2), g2, dot);
-  dot = _mm256_fmadd_ps(_mm256_sub_ps(cz, rz), gz, dot);
-  const __m256 g_a = _mm256_fmsub_ps(Tc, dot, _mm256_mul_ps(_mm256_div_ps(_mm256_loadu_ps(Tf), one_m),
+  const __m256 d0 = _mm256_sub_ps(_mm256_set1_ps(s.col0), r0), d1 = _mm256_sub_ps(_mm256_set1_ps(s.col1), r1),
+               d2 = _mm256_sub_ps(_mm256_set1_ps(s.col2), r2), dz = _mm256_sub_ps(_mm256_set1_ps(s.depth), rz);
+  __m256 dot = _mm256_mul_ps(d0, g0);
+  dot = _mm256_fmadd_ps(d1, g1, dot);
+  dot = _mm256_fmadd_ps(d2, g2, dot);
+  dot = _mm256_fmadd_ps(dz, gz, dot);
+  const __m256 g_a = _mm256_fmsub_ps(Tc, dot, _mm256_mul_ps(_mm256_mul_ps(_mm256_loadu_ps(Tf), inv),
                                                             _mm256_loadu_ps(gT)));
-  _mm256_storeu_ps(q0, _mm256_blendv_ps(r0, _mm256_fmadd_ps(a, c0, _mm256_mul_ps(one_m, r0)), ok));
-  _mm256_storeu_ps(q1, _mm256_blendv_ps(r1, _mm256_fmadd_ps(a, c1, _mm256_mul_ps(one_m, r1)), ok));
-  _mm256_storeu_ps(q2, _mm256_blendv_ps(r2, _mm256_fmadd_ps(a, c2, _mm256_mul_ps(one_m, r2)), ok));
-  _mm256_storeu_ps(qz, _mm256_blendv_ps(rz, _mm256_fmadd_ps(a, cz, _mm256_mul_ps(one_m, rz)), ok));
+  _mm256_storeu_ps(q0, _mm256_fmadd_ps(am, d0, r0));
+  _mm256_storeu_ps(q1, _mm256_fmadd_ps(am, d1, r1));
+  _mm256_storeu_ps(q2, _mm256_fmadd_ps(am, d2, r2));
+  _mm256_storeu_ps(qz, _mm256_fmadd_ps(am, dz, rz));
   _mm256_storeu_ps(T, Tc);
   const __m256 ga = _mm256_and_ps(_mm256_and_ps(ok, _mm256_cmp_ps(oG, _mm256_set1_ps(0.99f), _CMP_LE_OQ)), g_a);
-  add(8, _mm256_mul_ps(ga, G));
+  add(8, ga, G);
   const __m256 gp = _mm256_mul_ps(ga, a);
-  const __m256 vdy = _mm256_set1_ps(dy), A = _mm256_set1_ps(s.A), B = _mm256_set1_ps(s.B), C = _mm256_set1_ps(s.C);
-  add(0, _mm256_mul_ps(gp, _mm256_fmadd_ps(A, dx, _mm256_mul_ps(B, vdy))));
-  add(1, _mm256_mul_ps(gp, _mm256_fmadd_ps(B, dx, _mm256_mul_ps(C, vdy))));
-  add(2, _mm256_mul_ps(_mm256_mul_ps(gp, _mm256_set1_ps(-0.5f)), _mm256_mul_ps(dx, dx)));
-  add(3, _mm256_mul_ps(gp, _mm256_mul_ps(_mm256_sub_ps(_mm256_setzero_ps(), dx), vdy)));
-  add(4, _mm256_mul_ps(_mm256_mul_ps(gp, _mm256_set1_ps(-0.5f)), _mm256_set1_ps(dy * dy)));
+  const __m256 vdy = _mm256_set1_ps(dy), gpdx = _mm256_mul_ps(gp, dx), gpdy = _mm256_mul_ps(gp, vdy);
+  sums.v[0] = _mm256_add_ps(sums.v[0], gpdx);
+  sums.v[1] = _mm256_add_ps(sums.v[1], gpdy);
+  add(2, gpdx, dx);
+  add(3, gpdx, vdy);
+  add(4, gpdy, vdy);
 }
 #endif
 
@@ -582,29 +670,31 @@ Workspace<S>* forward(const Inputs<S>& in, const CameraParams& cam, int H, int W
   ws->tiles_y = (H + tile - 1) / tile;
   const int64_t n = in.n;
   // 1. projection and SH per Gaussian; culling (behind the near plane, box outside the image, opacity < 1/255)
-  std::vector<S> mx(n), my(n), qa(n), qb(n), qc(n), c0(n), c1(n), c2(n), dep(n), rad(n);
+  std::vector<Splat<S>> proj(n);  // index order
   std::vector<int32_t> box(4 * n);
   std::vector<char> visible(n);
 #pragma omp parallel for schedule(static) num_threads(threads)
   for (int64_t i = 0; i < n; ++i) {
     Proj p;
     project_one(in, cam, i, p);
-    mx[i] = S(p.u);
-    my[i] = S(p.v);
-    qa[i] = S(p.conic[0]);
-    qb[i] = S(p.conic[1]);
-    qc[i] = S(p.conic[2]);
-    c0[i] = S(std::max(p.raw[0], 0.0));
-    c1[i] = S(std::max(p.raw[1], 0.0));
-    c2[i] = S(std::max(p.raw[2], 0.0));
-    dep[i] = S(p.pc[2]);
-    rad[i] = S(p.r);
+    Splat<S>& s = proj[i];
+    s.gx = S(p.u);
+    s.gy = S(p.v);
+    s.r = S(p.r);
+    s.A = S(p.conic[0]);
+    s.B = S(p.conic[1]);
+    s.C = S(p.conic[2]);
+    s.o = S(double(in.opac[i]) * p.coverage);
+    s.col0 = S(std::max(p.raw[0], 0.0));
+    s.col1 = S(std::max(p.raw[1], 0.0));
+    s.col2 = S(std::max(p.raw[2], 0.0));
+    s.depth = S(p.pc[2]);
     // pixel index ranges whose centres lie in the footprint box: x + 0.5 in [u - r, u + r]
-    const double r = double(rad[i]), u = double(mx[i]), v = double(my[i]);
+    const double r = double(s.r), u = double(s.gx), v = double(s.gy);
     const double x0 = std::ceil(u - r - 0.5), x1 = std::floor(u + r - 0.5);
     const double y0 = std::ceil(v - r - 0.5), y1 = std::floor(v + r - 0.5);
     visible[i] = r > 0 && x0 <= x1 && y0 <= y1 && x0 <= W - 1 && x1 >= 0 && y0 <= H - 1 && y1 >= 0 &&
-                 alpha_tau(double(in.opac[i])) >= 0.0;
+                 alpha_tau(double(s.o)) >= 0.0;
     if (visible[i]) {
       box[4 * i] = int32_t(std::max(x0, 0.0));
       box[4 * i + 1] = int32_t(std::min(x1, double(W - 1)));
@@ -618,44 +708,35 @@ Workspace<S>* forward(const Inputs<S>& in, const CameraParams& cam, int H, int W
   for (int64_t i = 0; i < n; ++i) {
     if (!visible[i]) continue;
     order.push_back(i);
-    const float f = float(dep[i]);  // positive (z >= near > 0): its bits order like its value
+    const float f = float(proj[i].depth);  // positive (z >= near > 0): its bits order like its value
     std::memcpy(&key[i], &f, sizeof(uint32_t));
   }
   radix_sort(order, key);
   if (sizeof(S) == 8)  // float keys may tie where doubles differ: finish with a stable sort on exact depths
-    std::stable_sort(order.begin(), order.end(), [&](int64_t a, int64_t b) { return dep[a] < dep[b]; });
+    std::stable_sort(order.begin(), order.end(),
+                     [&](int64_t a, int64_t b) { return proj[a].depth < proj[b].depth; });
   const int64_t m = int64_t(order.size());
   const int ntiles = ws->tiles_x * ws->tiles_y;
   ws->rank_of.assign(n, -1);
   for (int64_t r = 0; r < m; ++r) ws->rank_of[order[r]] = r;
-  std::vector<S>* dst[10] = {&ws->mx, &ws->my, &ws->qa, &ws->qb, &ws->qc, &ws->c0, &ws->c1, &ws->c2, &ws->dep,
-                             &ws->rad};
-  const std::vector<S>* src[10] = {&mx, &my, &qa, &qb, &qc, &c0, &c1, &c2, &dep, &rad};
-  for (auto* d : dst) d->resize(m);
-  ws->op.resize(m);
-  ws->ry0.resize(m);
-  ws->ry1.resize(m);
-  ws->roff.assign(m + 1, 0);
+  std::vector<Splat<S>> sp(m);
   std::vector<int32_t> rbox(4 * m);  // footprint box per rank
+  std::vector<int32_t> ry0(m), ry1(m);  // per rank: candidate pixel rows [ry0, ry1] (global, in the image)
+  std::vector<int64_t> roff(m + 1, 0);  // per rank: offset of its rows' column ranges in ws->xr
   std::vector<int64_t> boff(m + 1, 0);  // per rank: its bands of tile rows (tile row, first and last tile column)
   for (int64_t r = 0; r < m; ++r) {  // serial: cheap, and each parallel region costs a barrier on a busy machine
     const int64_t i = order[r];
-    for (int q = 0; q < 10; ++q) (*dst[q])[r] = (*src[q])[i];
-    ws->op[r] = in.opac[i];
+    sp[r] = proj[i];
     for (int q = 0; q < 4; ++q) rbox[4 * r + q] = box[4 * i + q];
     // candidate rows: the box rows with one row of margin (the per-row test is in float)
-    ws->ry0[r] = std::max(box[4 * i + 2] - 1, 0);
-    ws->ry1[r] = std::min(box[4 * i + 3] + 1, H - 1);
-    ws->roff[r + 1] = ws->ry1[r] - ws->ry0[r] + 1;
-    boff[r + 1] = box[4 * i + 3] / tile - box[4 * i + 2] / tile + 1;
-  }
-  for (int64_t r = 0; r < m; ++r) {
-    ws->roff[r + 1] += ws->roff[r];
-    boff[r + 1] += boff[r];
+    ry0[r] = std::max(box[4 * i + 2] - 1, 0);
+    ry1[r] = std::min(box[4 * i + 3] + 1, H - 1);
+    roff[r + 1] = roff[r] + ry1[r] - ry0[r] + 1;
+    boff[r + 1] = boff[r] + box[4 * i + 3] / tile - box[4 * i + 2] / tile + 1;
   }
   // 3. candidate columns per row (the alpha ellipse within the box), entries per rank: the tiles that hold a
   // candidate pixel (per band of tile rows, the tiles between the band's leftmost and rightmost candidate)
-  ws->xr.resize(2 * ws->roff[m]);
+  ws->xr.resize(2 * roff[m]);
   std::vector<int64_t> entries(m);
   std::vector<int64_t> bpairs(m);
   // per band of tile rows of the footprint box: the first and last tile column holding a candidate pixel inside
@@ -665,15 +746,16 @@ Workspace<S>* forward(const Inputs<S>& in, const CameraParams& cam, int H, int W
   for (int64_t r = 0; r < m; ++r) {
     const int32_t* b = &rbox[4 * r];
     bpairs[r] = int64_t(b[1] - b[0] + 1) * (b[3] - b[2] + 1);
-    int32_t* xr = ws->xr.data() + 2 * ws->roff[r];
-    row_columns(*ws, r, alpha_tau(double(ws->op[r])), std::max(b[0] - 1, 0), std::min(b[1] + 1, W - 1), xr);
+    int32_t* xr = ws->xr.data() + 2 * roff[r];
+    row_columns(sp[r], ry0[r], ry1[r], alpha_tau(double(sp[r].o)), std::max(b[0] - 1, 0), std::min(b[1] + 1, W - 1),
+                xr);
     int32_t* bt = band_tx.data() + 2 * boff[r];
     const int ty0 = b[2] / tile;
     int64_t count = 0;
     for (int ty = ty0; ty <= b[3] / tile; ++ty, bt += 2) {
       int lo = W, hi = -1;
       for (int y = std::max(ty * tile, b[2]); y <= std::min(ty * tile + tile - 1, b[3]); ++y) {
-        const int32_t* row = xr + 2 * (y - ws->ry0[r]);
+        const int32_t* row = xr + 2 * (y - ry0[r]);
         const int xa = std::max(row[0], b[0]), xb = std::min(row[1], b[1]);
         if (xa <= xb) {
           lo = std::min(lo, xa);
@@ -698,23 +780,26 @@ Workspace<S>* forward(const Inputs<S>& in, const CameraParams& cam, int H, int W
   ws->ioff.assign(n + 1, 0);
   for (int64_t r = 0; r < m; ++r) ws->ioff[order[r] + 1] = entries[r];
   for (int64_t i = 0; i < n; ++i) ws->ioff[i + 1] += ws->ioff[i];
-  // 4. tile lists by a counting sort in rank order (ranks increase within a tile)
+  // 4. tile lists by a counting sort in rank order (ranks increase within a tile); each entry a copy of the
+  // Gaussian and its candidate rows in the tile
   ws->offsets.assign(ntiles + 1, 0);
   for (int64_t r = 0; r < m; ++r)
     bands(r, [&](int ty, int tx0, int tx1) {
       for (int tx = tx0; tx <= tx1; ++tx) ++ws->offsets[ty * ws->tiles_x + tx + 1];
     });
   for (int t = 0; t < ntiles; ++t) ws->offsets[t + 1] += ws->offsets[t];
-  ws->ids.resize(ws->offsets[ntiles]);
+  ws->ent.resize(ws->offsets[ntiles]);
   ws->slot.resize(ws->offsets[ntiles]);
   {
     std::vector<int64_t> cursor(ws->offsets.begin(), ws->offsets.end() - 1);
     for (int64_t r = 0; r < m; ++r) {
       int64_t e = ws->ioff[order[r]];
       bands(r, [&](int ty, int tx0, int tx1) {
+        const int ya = std::max(ry0[r], ty * tile), yb = std::min(ry1[r], std::min(ty * tile + tile, H) - 1);
+        const Entry<S> entry{sp[r], ya, yb, roff[r] + ya - ry0[r]};
         for (int tx = tx0; tx <= tx1; ++tx) {
           const int64_t pos = cursor[ty * ws->tiles_x + tx]++;
-          ws->ids[pos] = r;
+          ws->ent[pos] = entry;
           ws->slot[pos] = e++;
         }
       });
@@ -747,10 +832,11 @@ Workspace<S>* forward(const Inputs<S>& in, const CameraParams& cam, int H, int W
           for (int k = 0; k < P; ++k) active += done[k] == 0;
           if (active == 0) break;
         }
-        const int64_t g = w.ids[j];
-        const Splat<S> sp = splat_of(w, g);
+        if (j + 8 < end) prefetch_entries(w, j + 8, j + 4);
+        const Entry<S>& e = w.ent[j];
+        const Splat<S> sp = e.s;
         const int32_t rank = int32_t(j + 1 - start);
-        for_each_chunk(w, g, sp.gy, x0, y0, tw, th, stride, [&](S dy, int c, int k) {
+        for_each_chunk(w, e, x0, y0, tw, stride, [&](S dy, int c, int k) {
           composite_chunk(sp, dy, px.data() + c, T.data() + k, a0.data() + k, a1.data() + k, a2.data() + k,
                           az.data() + k, last.data() + k, done.data() + k, rank);
         });
@@ -773,8 +859,6 @@ Workspace<S>* forward(const Inputs<S>& in, const CameraParams& cam, int H, int W
   return ws;
 }
 
-constexpr int NG = 10;  // screen gradient per entry: mean2d x, y; conic a, b, c; colour r, g, b; opacity; depth
-
 template <typename S>
 void backward(const Workspace<S>& w, const Inputs<S>& in, const CameraParams& cam, const S* bg, const S* g_color,
               const S* g_alpha, const S* g_dsum, S* d_means, S* d_rot, S* d_scales, S* d_opac, S* d_sh,
@@ -782,13 +866,13 @@ void backward(const Workspace<S>& w, const Inputs<S>& in, const CameraParams& ca
   threads = threads_worth(threads, int64_t(w.H) * w.W, in.n);
   const int tile = w.tile, W = w.W, H = w.H;
   const int ntiles = w.tiles_x * w.tiles_y;
-  std::vector<S> egrad(w.ids.size() * NG);  // per entry slot (index order, then tile order); zero when unused
+  std::vector<S> egrad(w.ent.size() * NG);  // per entry slot (index order, then tile order); zero when unused
 #pragma omp parallel num_threads(threads)
   {
     const int stride = padded(tile), P = stride * tile;
     std::vector<S> T(P), Tf(P), gTf(P), r0(P), r1(P), r2(P), rz(P), g0(P), g1(P), g2(P), gz(P), px(stride);
     std::vector<int32_t> last(P);
-    S acc[NG * LANES];  // per-lane gradient sums of the current entry, added up in lane order at its end
+    LaneSums<S> sums;
 #pragma omp for schedule(dynamic, 1)
     for (int t = 0; t < ntiles; ++t) {
       const int x0 = (t % w.tiles_x) * tile, y0 = (t / w.tiles_x) * tile;
@@ -816,21 +900,17 @@ void backward(const Workspace<S>& w, const Inputs<S>& in, const CameraParams& ca
       for (int x = 0; x < stride; ++x) px[x] = S(x0 + x) + S(0.5);
       const int64_t start = w.offsets[t];
       for (int64_t j = start + max_last - 1; j >= start; --j) {
-        const int64_t g = w.ids[j];
-        const Splat<S> sp = splat_of(w, g);
+        if (j - 8 >= start) prefetch_entries(w, j - 8, j - 4);
+        const Entry<S>& e = w.ent[j];
+        const Splat<S> sp = e.s;
         const int32_t jj = int32_t(j - start);
-        std::fill(acc, acc + NG * LANES, S(0));
-        for_each_chunk(w, g, sp.gy, x0, y0, tw, th, stride, [&](S dy, int c, int k) {
+        sums.zero();
+        for_each_chunk(w, e, x0, y0, tw, stride, [&](S dy, int c, int k) {
           backward_chunk(sp, dy, px.data() + c, jj, last.data() + k, T.data() + k, r0.data() + k, r1.data() + k,
                          r2.data() + k, rz.data() + k, Tf.data() + k, gTf.data() + k, g0.data() + k, g1.data() + k,
-                         g2.data() + k, gz.data() + k, acc);
+                         g2.data() + k, gz.data() + k, sums);
         });
-        S* e = egrad.data() + w.slot[j] * NG;
-        for (int q = 0; q < NG; ++q) {
-          S sum = S(0);
-          for (int l = 0; l < LANES; ++l) sum += acc[q * LANES + l];
-          e[q] = sum;
-        }
+        reduce(sums, sp, egrad.data() + w.slot[j] * NG);
       }
     }
   }
@@ -883,7 +963,7 @@ CameraParams camera_params(const double* c) {
     const Inputs<S> in{means, rot, scales, opac, sh, n, K, count};                                           \
     Workspace<S>* ws = forward(in, camera_params(camera), H, W, tile, bg, color, alpha, dsum, threads);      \
     stats[0] = int64_t(ws->order.size());                                                                    \
-    stats[1] = int64_t(ws->ids.size());                                                                      \
+    stats[1] = int64_t(ws->ent.size());                                                                      \
     stats[2] = ws->pairs;                                                                                    \
     return ws;                                                                                               \
   }                                                                                                          \

@@ -4,7 +4,11 @@ Conventions of the rendering contract (pgc/roles/splat_renderer.py) that every b
 - world scales are clamped to ``[0, MAX_SCALE]`` before use (keeps float32 covariances finite);
 - ``x_c = R x_w + t``; Gaussians with ``z_c < near`` are culled; the mean projects to
   ``u = (K00 x + K01 y) / z + K02``, ``v = K11 y / z + K12``;
-- ``Sigma2D = J W Sigma W^T J^T + DILATION I`` with J the Jacobian of (u, v) at the camera-space mean;
+- ``Sigma2D = J W Sigma W^T J^T + DILATION I`` with J the Jacobian of (u, v) at the camera-space mean, and the
+  opacity scaled by the coverage ``sqrt(det(J W Sigma W^T J^T) / det(Sigma2D))`` (Mip-Splatting's 2D filter, the
+  "antialiased" mode of gsplat): the dilation stands for the pixel's box filter, and the coverage keeps each
+  Gaussian's integrated alpha (its mass on the image plane) what it was before the filter, so a Gaussian thinner
+  than a pixel, or a disc seen edge-on, covers the area it has instead of a dilated pixel-wide stroke;
 - footprint radius ``r = ceil(3 sqrt(lambda_max(Sigma2D)))`` (pixels), exact largest eigenvalue
   ``lambda_max = (a + c) / 2 + sqrt(((a - c) / 2)^2 + b^2)`` of ``Sigma2D = [[a, b], [b, c]]``;
   a Gaussian touches exactly the pixels whose centre c satisfies ``|c_x - u| <= r`` and ``|c_y - v| <= r``.
@@ -20,8 +24,9 @@ from pgc.splats.quaternion import quat_to_rotmat
 from pgc.splats.sh import sh_basis
 from pgc.types import Camera, WorldGaussians
 
-DILATION = 0.3
-"""Low-pass filter added to the diagonal of the 2D covariance (pixels^2)."""
+DILATION = 0.1
+"""Low-pass filter added to the diagonal of the 2D covariance (pixels^2): about the variance of a one-pixel box
+(1/12), the filter of the capture's pixels (3DGS adds 0.3 without the coverage factor)."""
 MAX_SCALE = 1e4
 """World standard deviations are clamped to this (metres)."""
 ALPHA_MIN = 1.0 / 255.0
@@ -38,7 +43,7 @@ class Projected:
     depths: np.ndarray    # (N,) camera z
     radii: np.ndarray     # (N,) footprint half-width in pixels (0 when culled)
     colors: np.ndarray    # (N, 3)
-    opacities: np.ndarray  # (N,)
+    opacities: np.ndarray  # (N,) the world opacities times the coverage
     valid: np.ndarray     # (N,) bool
 
 
@@ -63,6 +68,8 @@ def project(world: WorldGaussians, camera: Camera, sh_degree: int | None = None,
     cov = T @ np.swapaxes(T, 1, 2) + DILATION * np.eye(2)
     a, b, c = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
     det = a * c - b * b
+    raw_det = np.sum(np.cross(T[:, 0], T[:, 1]) ** 2, -1)  # det(T T^T) by Cauchy-Binet: exact for needles
+    coverage = np.sqrt(raw_det / det)
     conics = np.stack([c / det, -b / det, a / det], -1)
     lam = 0.5 * (a + c) + np.sqrt((0.5 * (a - c)) ** 2 + b * b)
     radii = np.where(valid, np.ceil(3.0 * np.sqrt(lam)), 0.0)
@@ -73,4 +80,5 @@ def project(world: WorldGaussians, camera: Camera, sh_degree: int | None = None,
     dirs = dirs / np.maximum(np.linalg.norm(dirs, axis=1, keepdims=True), 1e-300)
     basis = sh_basis(dirs, degree)
     colors = np.maximum(np.einsum("nk,nkc->nc", basis, sh[:, :basis.shape[1]]) + 0.5, 0.0)
-    return Projected(np.stack([u, v], -1), conics, z, radii, colors, np.asarray(world.opacities, np.float64), valid)
+    opacities = np.asarray(world.opacities, np.float64) * coverage
+    return Projected(np.stack([u, v], -1), conics, z, radii, colors, opacities, valid)

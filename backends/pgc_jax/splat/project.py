@@ -1,7 +1,8 @@
 """EWA projection of 3D Gaussians to screen space in JAX (docs/method.md section 2, the 3DGS conventions).
 
 Follows :mod:`pgc.splats.projection` (the float64 oracle) exactly: camera in the OpenCV convention,
-world scales clamped to ``MAX_SCALE``, Gaussians with camera depth ``z < near`` culled, 0.3 px^2 dilation,
+world scales clamped to ``MAX_SCALE``, Gaussians with camera depth ``z < near`` culled, ``DILATION`` px^2 dilation
+and the coverage factor of the opacity,
 footprint box half-width ``ceil(3 sqrt(lambda_max))``, SH colour along ``normalize(mean - centre)``.
 Everything here is differentiable and NaN-free for degenerate input (culled Gaussians get finite
 placeholder values).
@@ -34,6 +35,8 @@ class Projected(NamedTuple):
     """(N,) footprint box half-width ``ceil(3 sqrt(lambda_max))`` (px); 0 where invalid. No gradient."""
     lambda_max: jnp.ndarray
     """(N,) largest eigenvalue of the dilated 2D covariance (px^2); 0 where invalid. No gradient."""
+    coverage: jnp.ndarray
+    """(N,) ``sqrt(det(Sigma2D - DILATION I) / det(Sigma2D))``, the factor of the opacity; 0 where invalid."""
 
 
 def quat_to_rotmat(quats: jnp.ndarray) -> jnp.ndarray:
@@ -58,7 +61,7 @@ def project(means: jnp.ndarray, rotmats: jnp.ndarray, scales: jnp.ndarray, K: jn
     """Project Gaussians with centres ``means`` (N, 3), axes ``rotmats`` (N, 3, 3) (columns) and standard
     deviations ``scales`` (N, 3) through the camera (K, R, t).
 
-    The 2D covariance is ``T T^T + 0.3 I`` with ``T = J R_cam Rot diag(s)`` and ``J`` the Jacobian of the
+    The 2D covariance is ``T T^T + DILATION I`` with ``T = J R_cam Rot diag(s)`` and ``J`` the Jacobian of the
     perspective map at the centre. The inverse is formed on ``T`` rescaled to unit size, with the
     determinant from its 2x2 minors (Cauchy-Binet), so needles and huge Gaussians stay finite and positive.
     """
@@ -81,7 +84,10 @@ def project(means: jnp.ndarray, rotmats: jnp.ndarray, scales: jnp.ndarray, K: jn
     b = jnp.sum(Ts[:, 0] * Ts[:, 1], -1)
     c = jnp.sum(Ts[:, 1] ** 2, -1) + eps
     minors = jnp.cross(Ts[:, 0], Ts[:, 1])
-    det = jnp.sum(minors * minors, -1) + eps * (a + c - 2 * eps) + eps * eps
+    raw_det = jnp.sum(minors * minors, -1)
+    det = raw_det + eps * (a + c - 2 * eps) + eps * eps
+    some = valid & (raw_det > 0)  # sqrt's gradient at 0 is infinite: no coverage, no gradient there
+    coverage = jnp.where(some, jnp.sqrt(jnp.where(some, raw_det, 1.0) / det), 0.0)
     inv = 1.0 / (det * size * size)
     conic = jnp.stack([c * inv, -b * inv, a * inv], -1)
     a_, b_, c_, size_ = jax.lax.stop_gradient((a, b, c, size))  # footprint only: no gradient
@@ -89,7 +95,7 @@ def project(means: jnp.ndarray, rotmats: jnp.ndarray, scales: jnp.ndarray, K: jn
     lam = jnp.where(valid, lam, 0.0)
     mean2d = jnp.stack([u, v], -1)
     return Projected(jnp.where(valid[:, None], mean2d, 0.0), jnp.where(valid[:, None], conic, 0.0),
-                     zs, valid, jnp.where(valid, jnp.ceil(3.0 * jnp.sqrt(lam)), 0.0), lam)
+                     zs, valid, jnp.where(valid, jnp.ceil(3.0 * jnp.sqrt(lam)), 0.0), lam, coverage)
 
 
 def view_colors(means: jnp.ndarray, sh: jnp.ndarray, center: jnp.ndarray, degree: int) -> jnp.ndarray:

@@ -40,7 +40,7 @@ rotmats_of = jax.jit(quat_to_rotmat)
 @partial(jax.jit, static_argnames=("near",))
 def _footprints(means, rotmats, scales, opacities, cam: CameraArrays, near: float):
     p = project(means, rotmats, scales, cam.K, cam.R, cam.t, near)
-    return p.mean2d, p.depth, p.valid, p.radius, p.lambda_max, jnp.where(p.valid, opacities, 0.0)
+    return p.mean2d, p.depth, p.valid, p.radius, p.lambda_max, jnp.where(p.valid, opacities * p.coverage, 0.0)
 
 
 def make_bins(means, rotmats, scales, opacities, camera: Camera, cam: CameraArrays, *, tile: int,
@@ -74,7 +74,7 @@ def render_bound(means, rotmats, scales, opacities, sh, cam: CameraArrays, backg
     if color_offset is not None:
         colors = colors + color_offset
     feats = jnp.concatenate([colors, p.depth[:, None]], axis=1)
-    opac = jnp.where(p.valid, opacities, 0.0)
+    opac = jnp.where(p.valid, opacities * p.coverage, 0.0)
     img, alpha = composite(p.mean2d, p.conic, opac, p.radius, feats, gauss, tiles, first, width, height, tile)
     color = img[..., :3] + (1.0 - alpha)[..., None] * background
     has = alpha > 0

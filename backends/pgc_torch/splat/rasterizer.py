@@ -26,7 +26,7 @@ class Screen:
     means2d: torch.Tensor  # (N, 2)
     conics: torch.Tensor   # (N, 3)
     colors: torch.Tensor   # (N, 3)
-    opacities: torch.Tensor  # (N,)
+    opacities: torch.Tensor  # (N,) world opacities times the coverage (pgc.splats.projection)
     depths: torch.Tensor   # (N,)
     radii: torch.Tensor    # (N,) detached, 0 when culled
 
@@ -54,6 +54,10 @@ def project(means: torch.Tensor, rotmats: torch.Tensor, scales: torch.Tensor, op
     cov = T @ T.transpose(1, 2)
     a, b, c = cov[:, 0, 0] + DILATION, cov[:, 0, 1], cov[:, 1, 1] + DILATION
     det = a * c - b * b
+    raw_det = (torch.linalg.cross(T[:, 0], T[:, 1]) ** 2).sum(-1)  # det(T T^T), exact for needles
+    some = raw_det > 0  # sqrt's gradient at 0 is infinite: those Gaussians have no coverage and no gradient
+    coverage = torch.where(some, torch.sqrt(torch.where(some, raw_det, torch.ones_like(raw_det)) / det),
+                           torch.zeros_like(det))
     conics = torch.stack([c / det, -b / det, a / det], -1)
     with torch.no_grad():
         lam = 0.5 * (a + c) + torch.sqrt((0.5 * (a - c)) ** 2 + b * b)
@@ -65,7 +69,7 @@ def project(means: torch.Tensor, rotmats: torch.Tensor, scales: torch.Tensor, op
     basis = torch.stack(sh_basis_terms(d[:, 0], d[:, 1], d[:, 2], sh_degree), -1).to(sh.dtype)
     colors = torch.clamp_min(torch.einsum("nk,nkc->nc", basis, sh[:, :count]) + 0.5, 0.0)
     return Screen(torch.stack([u, v], -1).to(out_dtype), conics.to(out_dtype), colors.to(out_dtype),
-                  opacities.to(out_dtype), z.to(out_dtype), radii.to(out_dtype))
+                  (opacities * coverage).to(out_dtype), z.to(out_dtype), radii.to(out_dtype))
 
 
 @dataclass
