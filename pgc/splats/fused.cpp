@@ -9,16 +9,22 @@
 // skipped below 1/255 (a Gaussian with o k < 1/255 is culled); a pixel stops before its transmittance would
 // fall below 1e-4; colour = SH + 0.5 clamped at 0.
 //
-// Per Gaussian (projection, SH, their backward) the arithmetic is float64; per pixel-Gaussian pair it is
-// the input type S (float32: 8-wide AVX2 lanes with a polynomial exp accurate to ~2e-7 relative).
+// Per Gaussian (projection, SH, their backward) the arithmetic is float64, four Gaussians at a time in the lanes
+// of a 4-double vector (GCC vector extension: one AVX register, or two SSE2 registers; a lane's result does not
+// depend on the other lanes); per pixel-Gaussian pair it is the input type S (float32: 8-wide AVX2 lanes with a
+// polynomial exp accurate to ~2e-7 relative).
 // Work saving that changes no pixel: per Gaussian and pixel row, the candidate columns are those of the box
 // that may reach alpha >= 1/255 (the opacity-aware ellipse q <= 2 ln(255 o), with a margin); a Gaussian is
 // binned only to the tiles of its box that hold candidates, and a chunk of 8 pixels starts at a row's first
-// candidate (any column), so small footprints fill the lanes. The exact per-pixel test decides as before.
+// candidate (any column), so small footprints fill the lanes. The exact per-pixel test decides as before. The
+// candidate columns are solved four rows at a time (float64 vectors, branch-free).
 // Memory: each tile-list entry holds a copy of its Gaussian's screen-space parameters and its candidate rows in
 // the tile, in tile-list order, so the pixel loops stream through the entries (with software prefetch of the
 // next entries and their row ranges) instead of gathering per-rank arrays: per entry the loops run only a few
 // 8-pixel chunks (footprints of 3-5 px at 50k Gaussians), and the gathers' latency was most of their time.
+// A float entry is one aligned cache line, written by non-temporal stores (the build scatters entries over the
+// tile lists; ordinary stores would read every line first). The one remaining gather, the per-rank copy of the
+// projected Gaussians in depth order, prefetches 16 ranks ahead. Buffers written in full are not zero-filled.
 // Determinism: every pixel's arithmetic is independent of the thread count; tile lists are a counting sort
 // in rank order (ranks increase within a tile); the backward writes one gradient row per
 // (tile, Gaussian) entry into slots ordered by Gaussian, then tile, and sums each Gaussian's rows in that
@@ -32,7 +38,7 @@
 
 #include <omp.h>
 
-#if defined(__AVX2__) && defined(__FMA__)
+#if defined(__AVX__)
 #include <immintrin.h>
 #endif
 
@@ -82,51 +88,96 @@ struct Inputs {
   int K, count;      // SH coefficients stored per Gaussian, used (degree + 1)^2
 };
 
-// Projection of one Gaussian (float64), with the intermediates its backward needs.
+// Per-Gaussian arithmetic on four Gaussians at once (GCC vector extension: one AVX register of doubles, or a
+// pair of SSE2 registers without AVX). Lane l holds Gaussian id[l]; every lane's arithmetic is its own, so a
+// Gaussian's result does not depend on its block.
+#pragma GCC diagnostic ignored "-Wpsabi"  // D4 returned without AVX: internal inline functions, no ABI involved
+typedef double D4 __attribute__((vector_size(32)));
+constexpr int GL = 4;  // Gaussians per block
+
+inline D4 bc(double x) { return D4{x, x, x, x}; }
+// std::min / std::max semantics lane by lane ((b < a) ? b : a, (a < b) ? b : a)
+inline D4 vmin(const D4& a, const D4& b) { return b < a ? b : a; }
+inline D4 vmax(const D4& a, const D4& b) { return a < b ? b : a; }
+inline D4 vsqrt(const D4& x) {
+#if defined(__AVX__)
+  return _mm256_sqrt_pd(x);
+#else
+  return D4{std::sqrt(x[0]), std::sqrt(x[1]), std::sqrt(x[2]), std::sqrt(x[3])};
+#endif
+}
+inline D4 vfloor(const D4& x) {
+#if defined(__AVX__)
+  return _mm256_floor_pd(x);
+#else
+  return D4{std::floor(x[0]), std::floor(x[1]), std::floor(x[2]), std::floor(x[3])};
+#endif
+}
+inline D4 vceil(const D4& x) {
+#if defined(__AVX__)
+  return _mm256_ceil_pd(x);
+#else
+  return D4{std::ceil(x[0]), std::ceil(x[1]), std::ceil(x[2]), std::ceil(x[3])};
+#endif
+}
+
+// Element `off` of the rows id[0..3] of an (N, stride) array, as doubles.
+template <typename S>
+inline D4 gather(const S* a, int64_t stride, const int64_t* id, int64_t off) {
+  return D4{double(a[stride * id[0] + off]), double(a[stride * id[1] + off]), double(a[stride * id[2] + off]),
+            double(a[stride * id[3] + off])};
+}
+
+// Writes the first `lanes` lanes of v to element `off` of the rows id[l] of an (N, stride) array.
+template <typename S>
+inline void scatter(S* a, int64_t stride, const int64_t* id, int lanes, int64_t off, const D4& v) {
+  for (int l = 0; l < lanes; ++l) a[stride * id[l] + off] = S(v[l]);
+}
+
+// Projection of four Gaussians (float64), with the intermediates their backward needs.
 struct Proj {
-  double pc[3], J[6], WR[9], sc[3], Tm[6], a, b, c, det, conic[3], u, v, r, dir[3], inv_norm, raw[3];
-  double coverage;  // sqrt(det(Tm Tm^T) / det): the factor of the opacity
-  bool valid;
+  D4 pc[3], J[6], WR[9], sc[3], Tm[6], a, b, c, det, conic[3], u, v, r, dir[3], inv_norm, raw[3];
+  D4 coverage;  // sqrt(det(Tm Tm^T) / det): the factor of the opacity
 };
 
-inline void sh_basis(const double* d, int count, double* out) {
-  const double x = d[0], y = d[1], z = d[2];
-  out[0] = SH_C0;
+inline void sh_basis(const D4* d, int count, D4* out) {
+  const D4 x = d[0], y = d[1], z = d[2];
+  out[0] = bc(SH_C0);
   if (count > 1) {
     out[1] = -SH_C1 * y;
     out[2] = SH_C1 * z;
     out[3] = -SH_C1 * x;
   }
   if (count > 4) {
-    const double xx = x * x, yy = y * y, zz = z * z;
+    const D4 xx = x * x, yy = y * y, zz = z * z;
     out[4] = SH_C2[0] * x * y;
     out[5] = SH_C2[1] * y * z;
-    out[6] = SH_C2[2] * (2 * zz - xx - yy);
+    out[6] = SH_C2[2] * (2.0 * zz - xx - yy);
     out[7] = SH_C2[3] * x * z;
     out[8] = SH_C2[4] * (xx - yy);
     if (count > 9) {
-      out[9] = SH_C3[0] * y * (3 * xx - yy);
+      out[9] = SH_C3[0] * y * (3.0 * xx - yy);
       out[10] = SH_C3[1] * x * y * z;
-      out[11] = SH_C3[2] * y * (4 * zz - xx - yy);
-      out[12] = SH_C3[3] * z * (2 * zz - 3 * xx - 3 * yy);
-      out[13] = SH_C3[4] * x * (4 * zz - xx - yy);
+      out[11] = SH_C3[2] * y * (4.0 * zz - xx - yy);
+      out[12] = SH_C3[3] * z * (2.0 * zz - 3.0 * xx - 3.0 * yy);
+      out[13] = SH_C3[4] * x * (4.0 * zz - xx - yy);
       out[14] = SH_C3[5] * z * (xx - yy);
-      out[15] = SH_C3[6] * x * (xx - 3 * yy);
+      out[15] = SH_C3[6] * x * (xx - 3.0 * yy);
     }
   }
 }
 
 // g (count,) = dL/dbasis -> dL/d(direction) (3,).
-inline void sh_basis_backward(const double* d, int count, const double* g, double* gd) {
-  const double x = d[0], y = d[1], z = d[2];
-  gd[0] = gd[1] = gd[2] = 0.0;
+inline void sh_basis_backward(const D4* d, int count, const D4* g, D4* gd) {
+  const D4 x = d[0], y = d[1], z = d[2];
+  gd[0] = gd[1] = gd[2] = bc(0.0);
   if (count > 1) {
     gd[1] += -SH_C1 * g[1];
     gd[2] += SH_C1 * g[2];
     gd[0] += -SH_C1 * g[3];
   }
   if (count > 4) {
-    const double xx = x * x, yy = y * y, zz = z * z;
+    const D4 xx = x * x, yy = y * y, zz = z * z;
     gd[0] += SH_C2[0] * y * g[4];
     gd[1] += SH_C2[0] * x * g[4];
     gd[1] += SH_C2[1] * z * g[5];
@@ -140,47 +191,48 @@ inline void sh_basis_backward(const double* d, int count, const double* g, doubl
     gd[1] += -2 * SH_C2[4] * y * g[8];
     if (count > 9) {
       gd[0] += 6 * SH_C3[0] * x * y * g[9];
-      gd[1] += SH_C3[0] * (3 * xx - 3 * yy) * g[9];
+      gd[1] += SH_C3[0] * (3.0 * xx - 3.0 * yy) * g[9];
       gd[0] += SH_C3[1] * y * z * g[10];
       gd[1] += SH_C3[1] * x * z * g[10];
       gd[2] += SH_C3[1] * x * y * g[10];
       gd[0] += -2 * SH_C3[2] * x * y * g[11];
-      gd[1] += SH_C3[2] * (4 * zz - xx - 3 * yy) * g[11];
+      gd[1] += SH_C3[2] * (4.0 * zz - xx - 3.0 * yy) * g[11];
       gd[2] += 8 * SH_C3[2] * y * z * g[11];
       gd[0] += -6 * SH_C3[3] * x * z * g[12];
       gd[1] += -6 * SH_C3[3] * y * z * g[12];
-      gd[2] += SH_C3[3] * (6 * zz - 3 * xx - 3 * yy) * g[12];
-      gd[0] += SH_C3[4] * (4 * zz - 3 * xx - yy) * g[13];
+      gd[2] += SH_C3[3] * (6.0 * zz - 3.0 * xx - 3.0 * yy) * g[12];
+      gd[0] += SH_C3[4] * (4.0 * zz - 3.0 * xx - yy) * g[13];
       gd[1] += -2 * SH_C3[4] * x * y * g[13];
       gd[2] += 8 * SH_C3[4] * x * z * g[13];
       gd[0] += 2 * SH_C3[5] * x * z * g[14];
       gd[1] += -2 * SH_C3[5] * y * z * g[14];
       gd[2] += SH_C3[5] * (xx - yy) * g[14];
-      gd[0] += SH_C3[6] * (3 * xx - 3 * yy) * g[15];
+      gd[0] += SH_C3[6] * (3.0 * xx - 3.0 * yy) * g[15];
       gd[1] += -6 * SH_C3[6] * x * y * g[15];
     }
   }
 }
 
+// Projection of the Gaussians id[0..3]; lanes behind the near plane get r = 0 (their other fields are finite).
 template <typename S>
-void project_one(const Inputs<S>& in, const CameraParams& cam, int64_t i, Proj& p) {
-  const S* m = in.means + 3 * i;
-  const double mw[3] = {double(m[0]), double(m[1]), double(m[2])};
+void project(const Inputs<S>& in, const CameraParams& cam, const int64_t* id, Proj& p) {
+  const D4 mw[3] = {gather(in.means, 3, id, 0), gather(in.means, 3, id, 1), gather(in.means, 3, id, 2)};
   for (int r = 0; r < 3; ++r)
     p.pc[r] = cam.R[3 * r] * mw[0] + cam.R[3 * r + 1] * mw[1] + cam.R[3 * r + 2] * mw[2] + cam.t[r];
-  const double x = p.pc[0], y = p.pc[1], z = p.pc[2];
-  p.valid = z >= cam.near;
-  const double zs = p.valid ? z : 1.0;
+  const D4 x = p.pc[0], y = p.pc[1], z = p.pc[2];
+  const auto valid = z >= cam.near;
+  const D4 zs = valid ? z : bc(1.0);
   p.u = (cam.fx * x + cam.skew * y) / zs + cam.cx;
   p.v = cam.fy * y / zs + cam.cy;
   p.J[0] = cam.fx / zs;
   p.J[1] = cam.skew / zs;
   p.J[2] = -(cam.fx * x + cam.skew * y) / (zs * zs);
-  p.J[3] = 0.0;
+  p.J[3] = bc(0.0);
   p.J[4] = cam.fy / zs;
   p.J[5] = -cam.fy * y / (zs * zs);
-  const S* Rg = in.rot + 9 * i;
-  for (int j = 0; j < 3; ++j) p.sc[j] = std::min(std::max(double(in.scales[3 * i + j]), 0.0), MAX_SCALE);
+  for (int j = 0; j < 3; ++j) p.sc[j] = vmin(vmax(gather(in.scales, 3, id, j), bc(0.0)), bc(MAX_SCALE));
+  D4 Rg[9];
+  for (int k = 0; k < 9; ++k) Rg[k] = gather(in.rot, 9, id, k);
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c)
       p.WR[3 * r + c] = cam.R[3 * r] * Rg[c] + cam.R[3 * r + 1] * Rg[3 + c] + cam.R[3 * r + 2] * Rg[6 + c];
@@ -192,110 +244,110 @@ void project_one(const Inputs<S>& in, const CameraParams& cam, int64_t i, Proj& 
   p.c = p.Tm[3] * p.Tm[3] + p.Tm[4] * p.Tm[4] + p.Tm[5] * p.Tm[5] + DILATION;
   p.det = p.a * p.c - p.b * p.b;
   // det(Tm Tm^T) as the squared 2x2 minors of Tm (Cauchy-Binet): no cancellation for needles
-  const double m0 = p.Tm[1] * p.Tm[5] - p.Tm[2] * p.Tm[4], m1 = p.Tm[2] * p.Tm[3] - p.Tm[0] * p.Tm[5],
-               m2 = p.Tm[0] * p.Tm[4] - p.Tm[1] * p.Tm[3];
-  p.coverage = std::sqrt((m0 * m0 + m1 * m1 + m2 * m2) / p.det);
+  const D4 m0 = p.Tm[1] * p.Tm[5] - p.Tm[2] * p.Tm[4], m1 = p.Tm[2] * p.Tm[3] - p.Tm[0] * p.Tm[5],
+           m2 = p.Tm[0] * p.Tm[4] - p.Tm[1] * p.Tm[3];
+  p.coverage = vsqrt((m0 * m0 + m1 * m1 + m2 * m2) / p.det);
   p.conic[0] = p.c / p.det;
   p.conic[1] = -p.b / p.det;
   p.conic[2] = p.a / p.det;
-  const double half = 0.5 * (p.a - p.c);
-  const double lam = 0.5 * (p.a + p.c) + std::sqrt(half * half + p.b * p.b);
-  p.r = p.valid ? std::ceil(3.0 * std::sqrt(lam)) : 0.0;
-  double d[3] = {mw[0] - cam.centre[0], mw[1] - cam.centre[1], mw[2] - cam.centre[2]};
-  p.inv_norm = 1.0 / std::sqrt(std::max(d[0] * d[0] + d[1] * d[1] + d[2] * d[2], 1e-60));
+  const D4 half = 0.5 * (p.a - p.c);
+  const D4 lam = 0.5 * (p.a + p.c) + vsqrt(half * half + p.b * p.b);
+  p.r = valid ? vceil(3.0 * vsqrt(lam)) : bc(0.0);
+  const D4 d[3] = {mw[0] - cam.centre[0], mw[1] - cam.centre[1], mw[2] - cam.centre[2]};
+  p.inv_norm = 1.0 / vsqrt(vmax(d[0] * d[0] + d[1] * d[1] + d[2] * d[2], bc(1e-60)));
   for (int k = 0; k < 3; ++k) p.dir[k] = d[k] * p.inv_norm;
-  double basis[16];
+  D4 basis[16];
   sh_basis(p.dir, in.count, basis);
-  const S* sh = in.sh + int64_t(in.K) * 3 * i;
+  const int64_t K3 = int64_t(in.K) * 3;
   for (int ch = 0; ch < 3; ++ch) {
-    double acc = 0.0;
-    for (int k = 0; k < in.count; ++k) acc += basis[k] * double(sh[3 * k + ch]);
+    D4 acc = bc(0.0);
+    for (int k = 0; k < in.count; ++k) acc += basis[k] * gather(in.sh, K3, id, 3 * k + ch);
     p.raw[ch] = acc + 0.5;
   }
 }
 
-// Screen-space gradient of one Gaussian (mean2d x, y; conic a, b, c; colour r, g, b; opacity; depth) ->
-// gradients of its world parameters.
+// Screen-space gradients gs (NG) of the Gaussians id[0..lanes-1] (mean2d x, y; conic a, b, c; colour r, g, b;
+// opacity; depth; all in front of the near plane) -> gradients of their world parameters.
 template <typename S>
-void project_one_backward(const Inputs<S>& in, const CameraParams& cam, int64_t i, const Proj& p, const double* gs,
-                          S* d_means, S* d_rot, S* d_scales, S* d_opac, S* d_sh) {
+void project_backward(const Inputs<S>& in, const CameraParams& cam, const int64_t* id, int lanes, const Proj& p,
+                      const D4* gs, S* d_means, S* d_rot, S* d_scales, S* d_opac, S* d_sh) {
   // conic = inverse(Sigma2D): dL/dSigma = -Q G Q with G the symmetric gradient of Q
-  const double Q[4] = {p.conic[0], p.conic[1], p.conic[1], p.conic[2]};
-  const double G[4] = {gs[2], 0.5 * gs[3], 0.5 * gs[3], gs[4]};
-  double QG[4], dS[4];
+  const D4 Q[4] = {p.conic[0], p.conic[1], p.conic[1], p.conic[2]};
+  const D4 G[4] = {gs[2], 0.5 * gs[3], 0.5 * gs[3], gs[4]};
+  D4 QG[4], dS[4];
   for (int r = 0; r < 2; ++r)
     for (int c = 0; c < 2; ++c) QG[2 * r + c] = Q[2 * r] * G[c] + Q[2 * r + 1] * G[2 + c];
   for (int r = 0; r < 2; ++r)
     for (int c = 0; c < 2; ++c) dS[2 * r + c] = -(QG[2 * r] * Q[c] + QG[2 * r + 1] * Q[2 + c]);
-  double Gc[4] = {dS[0], 0.5 * (dS[1] + dS[2]), 0.5 * (dS[1] + dS[2]), dS[3]};
+  D4 Gc[4] = {dS[0], 0.5 * (dS[1] + dS[2]), 0.5 * (dS[1] + dS[2]), dS[3]};
   // coverage k = sqrt(D0 / D), D0 = det(Sigma2D - s I), D = det(Sigma2D): d(k^2)/dSigma2D =
   // ((1 - k^2) adj(Sigma2D - s I) - k^2 s I) / D with 1 - k^2 = s (a + c - s) / D; dk = d(k^2) / (2 k).
   // Only Gaussians with o k >= 1/255 reach here, so k > 0.
-  const double g_cov = gs[8] * double(in.opac[i]);
-  if (g_cov != 0.0 && p.coverage > 0.0) {
-    const double k2 = p.coverage * p.coverage, rest = DILATION * (p.a + p.c - DILATION) / p.det;
-    const double f = g_cov / (2.0 * p.coverage * p.det);
-    Gc[0] += f * (rest * (p.c - DILATION) - k2 * DILATION);
-    Gc[1] -= f * rest * p.b;
-    Gc[2] -= f * rest * p.b;
-    Gc[3] += f * (rest * (p.a - DILATION) - k2 * DILATION);
+  const D4 g_cov = gs[8] * gather(in.opac, 1, id, 0);
+  const auto has_cov = (g_cov != 0.0) & (p.coverage > 0.0);
+  {
+    const D4 k2 = p.coverage * p.coverage, rest = DILATION * (p.a + p.c - DILATION) / p.det;
+    const D4 f = g_cov / (2.0 * p.coverage * p.det);
+    Gc[0] = has_cov ? Gc[0] + f * (rest * (p.c - DILATION) - k2 * DILATION) : Gc[0];
+    Gc[1] = has_cov ? Gc[1] - f * rest * p.b : Gc[1];
+    Gc[2] = has_cov ? Gc[2] - f * rest * p.b : Gc[2];
+    Gc[3] = has_cov ? Gc[3] + f * (rest * (p.a - DILATION) - k2 * DILATION) : Gc[3];
   }
-  double dTm[6];  // 2 Gc Tm
+  D4 dTm[6];  // 2 Gc Tm
   for (int r = 0; r < 2; ++r)
     for (int c = 0; c < 3; ++c) dTm[3 * r + c] = 2.0 * (Gc[2 * r] * p.Tm[c] + Gc[2 * r + 1] * p.Tm[3 + c]);
-  double M[9];
+  D4 M[9];
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) M[3 * r + c] = p.WR[3 * r + c] * p.sc[c];
-  double dJ[6], dM[9];
+  D4 dJ[6], dM[9];
   for (int r = 0; r < 2; ++r)
     for (int c = 0; c < 3; ++c)
       dJ[3 * r + c] = dTm[3 * r] * M[3 * c] + dTm[3 * r + 1] * M[3 * c + 1] + dTm[3 * r + 2] * M[3 * c + 2];
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) dM[3 * r + c] = p.J[r] * dTm[c] + p.J[3 + r] * dTm[3 + c];
-  S* dr = d_rot + 9 * i;
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c)
-      dr[3 * r + c] = S((cam.R[r] * dM[c] + cam.R[3 + r] * dM[3 + c] + cam.R[6 + r] * dM[6 + c]) * p.sc[c]);
+      scatter(d_rot, 9, id, lanes, 3 * r + c,
+              (cam.R[r] * dM[c] + cam.R[3 + r] * dM[3 + c] + cam.R[6 + r] * dM[6 + c]) * p.sc[c]);
   for (int c = 0; c < 3; ++c) {
-    const double s = double(in.scales[3 * i + c]);
-    const double g = p.WR[c] * dM[c] + p.WR[3 + c] * dM[3 + c] + p.WR[6 + c] * dM[6 + c];
-    d_scales[3 * i + c] = S((s >= 0.0 && s <= MAX_SCALE) ? g : 0.0);
+    const D4 s = gather(in.scales, 3, id, c);
+    const D4 g = p.WR[c] * dM[c] + p.WR[3 + c] * dM[3 + c] + p.WR[6 + c] * dM[6 + c];
+    scatter(d_scales, 3, id, lanes, c, (s >= 0.0) & (s <= MAX_SCALE) ? g : bc(0.0));
   }
-  // camera-space mean: through J, (u, v) and depth (valid Gaussians only reach here: zs = z)
-  const double x = p.pc[0], y = p.pc[1], z = p.pc[2];
-  const double iz = 1.0 / z, iz2 = iz * iz, iz3 = iz2 * iz;
-  const double fxs = cam.fx * x + cam.skew * y;
-  const double gu = gs[0], gv = gs[1];
-  double gp[3];
+  // camera-space mean: through J, (u, v) and depth (zs = z: in front of the near plane)
+  const D4 x = p.pc[0], y = p.pc[1], z = p.pc[2];
+  const D4 iz = 1.0 / z, iz2 = iz * iz, iz3 = iz2 * iz;
+  const D4 fxs = cam.fx * x + cam.skew * y;
+  const D4 gu = gs[0], gv = gs[1];
+  D4 gp[3];
   gp[0] = -cam.fx * iz2 * dJ[2] + gu * cam.fx * iz;
   gp[1] = -cam.skew * iz2 * dJ[2] - cam.fy * iz2 * dJ[5] + gu * cam.skew * iz + gv * cam.fy * iz;
   gp[2] = -cam.fx * iz2 * dJ[0] - cam.skew * iz2 * dJ[1] + 2.0 * fxs * iz3 * dJ[2] - cam.fy * iz2 * dJ[4] +
           2.0 * cam.fy * y * iz3 * dJ[5] - gu * fxs * iz2 - gv * cam.fy * y * iz2 + gs[9];
   // colour: clamp at 0, SH coefficients and the viewing direction
-  double graw[3];
-  for (int ch = 0; ch < 3; ++ch) graw[ch] = p.raw[ch] >= 0.0 ? gs[5 + ch] : 0.0;
-  double basis[16], gbasis[16];
+  D4 graw[3];
+  for (int ch = 0; ch < 3; ++ch) graw[ch] = p.raw[ch] >= 0.0 ? gs[5 + ch] : bc(0.0);
+  D4 basis[16], gbasis[16];
   sh_basis(p.dir, in.count, basis);
-  const S* sh = in.sh + int64_t(in.K) * 3 * i;
-  S* dsh = d_sh + int64_t(in.K) * 3 * i;
+  const int64_t K3 = int64_t(in.K) * 3;
   for (int k = 0; k < in.count; ++k) {
-    gbasis[k] = 0.0;
+    gbasis[k] = bc(0.0);
     for (int ch = 0; ch < 3; ++ch) {
-      dsh[3 * k + ch] = S(basis[k] * graw[ch]);
-      gbasis[k] += double(sh[3 * k + ch]) * graw[ch];
+      scatter(d_sh, K3, id, lanes, 3 * k + ch, basis[k] * graw[ch]);
+      gbasis[k] += gather(in.sh, K3, id, 3 * k + ch) * graw[ch];
     }
   }
-  double gdir[3];
+  D4 gdir[3];
   sh_basis_backward(p.dir, in.count, gbasis, gdir);
-  const double n2 = 1.0 / (p.inv_norm * p.inv_norm);
-  const double dot = p.dir[0] * gdir[0] + p.dir[1] * gdir[1] + p.dir[2] * gdir[2];
-  const bool clamped = n2 <= 1e-60;
+  const D4 n2 = 1.0 / (p.inv_norm * p.inv_norm);
+  const D4 dot = p.dir[0] * gdir[0] + p.dir[1] * gdir[1] + p.dir[2] * gdir[2];
+  const auto clamped = n2 <= 1e-60;
   for (int k = 0; k < 3; ++k) {
-    const double gm = cam.R[k] * gp[0] + cam.R[3 + k] * gp[1] + cam.R[6 + k] * gp[2];
-    const double gd = p.inv_norm * (clamped ? gdir[k] : gdir[k] - p.dir[k] * dot);
-    d_means[3 * i + k] = S(gm + gd);
+    const D4 gm = cam.R[k] * gp[0] + cam.R[3 + k] * gp[1] + cam.R[6 + k] * gp[2];
+    const D4 gd = p.inv_norm * (clamped ? gdir[k] : gdir[k] - p.dir[k] * dot);
+    scatter(d_means, 3, id, lanes, k, gm + gd);
   }
-  d_opac[i] = S(gs[8] * p.coverage);
+  scatter(d_opac, 1, id, lanes, 0, gs[8] * p.coverage);
 }
 
 // One Gaussian in screen space: mean, footprint radius, conic, opacity, colour, depth.
@@ -306,13 +358,46 @@ struct Splat {
 
 // One tile-list entry as the pixel loops read it: a copy of the Gaussian and its candidate rows inside the tile,
 // stored in tile-list order so that the loops stream through the entries (64 bytes for float) instead of
-// gathering each Gaussian's parameters by rank.
+// gathering each Gaussian's parameters by rank. Cache-line aligned: a float entry is one line, fetched whole.
 template <typename S>
-struct Entry {
+struct alignas(64) Entry {
   Splat<S> s;
   int32_t ya, yb;  // candidate pixel rows inside the tile (global)
   int64_t rows;    // offset of row ya's column range in Workspace::xr
 };
+
+// Writes a tile-list entry. A float entry is one cache line, written by non-temporal stores: the build scatters
+// entries over the tiles' lists, and ordinary stores would first read each line.
+template <typename S>
+inline void store_entry(Entry<S>* dst, const Entry<S>& e) { *dst = e; }
+#if defined(__AVX__)
+template <>
+inline void store_entry<float>(Entry<float>* dst, const Entry<float>& e) {
+  static_assert(sizeof(Entry<float>) == 64, "one cache line");
+  const __m256i* src = reinterpret_cast<const __m256i*>(&e);
+  _mm256_stream_si256(reinterpret_cast<__m256i*>(dst), _mm256_loadu_si256(src));
+  _mm256_stream_si256(reinterpret_cast<__m256i*>(dst) + 1, _mm256_loadu_si256(src + 1));
+}
+#endif
+
+// Allocator whose resize() leaves the elements uninitialised: for buffers the code writes in full (a zero fill
+// of the megabytes of tile lists and candidate rows would be wasted bandwidth).
+template <typename T>
+struct NoInit : std::allocator<T> {
+  template <typename U>
+  struct rebind {
+    using other = NoInit<U>;
+  };
+  NoInit() = default;
+  template <typename U>
+  NoInit(const NoInit<U>&) {}
+  template <typename U>
+  void construct(U* p) {
+    ::new (static_cast<void*>(p)) U;
+  }
+};
+template <typename T>
+using Buffer = std::vector<T, NoInit<T>>;
 
 // Everything the backward needs from the forward; owned by the Python side through an opaque handle.
 template <typename S>
@@ -320,13 +405,13 @@ struct Workspace {
   int H = 0, W = 0, tile = 0, tiles_x = 0, tiles_y = 0;
   std::vector<int64_t> order;              // rank -> Gaussian index, increasing depth (ties by index)
   std::vector<int64_t> rank_of;            // Gaussian index -> rank (-1: culled)
-  std::vector<int32_t> xr;                 // per candidate row: candidate columns [xa, xb] (empty when xa > xb)
+  Buffer<int32_t> xr;                      // per candidate row: candidate columns [xa, xb] (empty when xa > xb)
   std::vector<int64_t> offsets;            // tile t's entries: offsets[t] .. offsets[t + 1] - 1
-  std::vector<Entry<S>> ent;               // tile lists (ranks increase within a tile)
-  std::vector<int64_t> ioff, slot;         // entry slots: Gaussian i owns ioff[i] .. ioff[i + 1] - 1 (tile order);
-                                           // slot[j] = the slot of tile-list position j
-  std::vector<S> Tfinal;                   // (H, W) final transmittance
-  std::vector<int32_t> last;               // (H, W) entries composited in the pixel's tile list
+  Buffer<Entry<S>> ent;                    // tile lists (ranks increase within a tile)
+  std::vector<int64_t> ioff;               // entry slots: Gaussian i owns ioff[i] .. ioff[i + 1] - 1 (tile order)
+  Buffer<int64_t> slot;                    // slot[j] = the slot of tile-list position j
+  Buffer<S> Tfinal;                        // (H, W) final transmittance
+  Buffer<int32_t> last;                    // (H, W) entries composited in the pixel's tile list
   int64_t pairs = 0;                       // pixel-Gaussian pairs inside footprint boxes (work measure)
 };
 
@@ -348,8 +433,10 @@ constexpr int LANES = 8;  // pixels per SIMD chunk (one AVX2 register of floats)
 // the tile (the padding never composites).
 inline int padded(int tile) { return (tile + LANES - 1) / LANES * LANES + LANES; }
 
-inline int64_t floor_clamp(double v, int64_t lo, int64_t hi) {
-  return !(v >= double(lo)) ? lo : (v > double(hi) ? hi : int64_t(std::floor(v)));  // NaN -> lo
+// floor(v) clamped to [lo, hi] lane by lane (NaN -> lo)
+inline D4 floor_clamp(const D4& v, int64_t lo, int64_t hi) {
+  const D4 l = bc(double(lo)), h = bc(double(hi));
+  return (v >= l) == 0 ? l : (v > h ? h : vfloor(v));
 }
 
 // tau of the alpha cutoff for opacity o: o exp(-q / 2) >= 1/255 <=> q = A dx^2 + 2 B dx dy + C dy^2 <= 2 ln(255 o),
@@ -370,22 +457,23 @@ inline void row_columns(const Splat<S>& sp, int ry0, int ry1, double tau, int64_
   const bool ellipse = A > 0.0;
   const double kb = ellipse ? B / A : 0.0, k2 = ellipse ? (B * B - A * C) / (A * A) : 0.0;
   const double k0 = ellipse ? tau / A : 0.0;
-  for (int y = ry0; y <= ry1; ++y, out += 2) {
-    out[0] = 1;
-    out[1] = 0;
-    const S dy = S(y) + S(0.5) - sp.gy;
-    if (std::fabs(dy) > sp.r) continue;
-    int64_t xa = bx0, xb = bx1;
+  for (int y = ry0; y <= ry1; y += GL, out += 2 * GL) {  // GL rows at a time, branch-free
+    D4 d;  // dy in S, as the per-pixel test computes it
+    for (int l = 0; l < GL; ++l) d[l] = double(S(y + l) + S(0.5) - sp.gy);
+    auto keep = (vmax(d, -d) > double(sp.r)) == 0;
+    D4 xa = bc(double(bx0)), xb = bc(double(bx1));
     if (ellipse) {
-      const double d = dy, h2 = k2 * d * d + k0;
-      if (h2 < 0.0) continue;
-      const double h = std::sqrt(h2), c = gx - kb * d - 0.5;
-      xa = std::max(xa, floor_clamp(c - h, bx0 - 2, bx1 + 2) - 1);
-      xb = std::min(xb, -floor_clamp(-(c + h), -bx1 - 2, -bx0 + 2) + 1);
+      const D4 h2 = k2 * d * d + k0;
+      keep &= (h2 < 0.0) == 0;
+      const D4 h = vsqrt(h2), c = gx - kb * d - 0.5;
+      xa = vmax(xa, floor_clamp(c - h, bx0 - 2, bx1 + 2) - 1.0);
+      xb = vmin(xb, -floor_clamp(-(c + h), -bx1 - 2, -bx0 + 2) + 1.0);
     }
-    if (xa > xb) continue;
-    out[0] = int32_t(xa);
-    out[1] = int32_t(xb);
+    keep &= (xa > xb) == 0;
+    for (int l = 0; l < GL && y + l <= ry1; ++l) {
+      out[2 * l] = keep[l] ? int32_t(xa[l]) : 1;
+      out[2 * l + 1] = keep[l] ? int32_t(xb[l]) : 0;
+    }
   }
 }
 
@@ -670,36 +758,41 @@ Workspace<S>* forward(const Inputs<S>& in, const CameraParams& cam, int H, int W
   ws->tiles_y = (H + tile - 1) / tile;
   const int64_t n = in.n;
   // 1. projection and SH per Gaussian; culling (behind the near plane, box outside the image, opacity < 1/255)
-  std::vector<Splat<S>> proj(n);  // index order
-  std::vector<int32_t> box(4 * n);
+  Buffer<Splat<S>> proj(n);  // index order
+  Buffer<int32_t> box(4 * n);
   std::vector<char> visible(n);
+  std::vector<double> tau(n);  // alpha_tau of the opacity
 #pragma omp parallel for schedule(static) num_threads(threads)
-  for (int64_t i = 0; i < n; ++i) {
+  for (int64_t i0 = 0; i0 < n; i0 += GL) {
+    const int64_t id[GL] = {i0, std::min(i0 + 1, n - 1), std::min(i0 + 2, n - 1), std::min(i0 + 3, n - 1)};
     Proj p;
-    project_one(in, cam, i, p);
-    Splat<S>& s = proj[i];
-    s.gx = S(p.u);
-    s.gy = S(p.v);
-    s.r = S(p.r);
-    s.A = S(p.conic[0]);
-    s.B = S(p.conic[1]);
-    s.C = S(p.conic[2]);
-    s.o = S(double(in.opac[i]) * p.coverage);
-    s.col0 = S(std::max(p.raw[0], 0.0));
-    s.col1 = S(std::max(p.raw[1], 0.0));
-    s.col2 = S(std::max(p.raw[2], 0.0));
-    s.depth = S(p.pc[2]);
-    // pixel index ranges whose centres lie in the footprint box: x + 0.5 in [u - r, u + r]
-    const double r = double(s.r), u = double(s.gx), v = double(s.gy);
-    const double x0 = std::ceil(u - r - 0.5), x1 = std::floor(u + r - 0.5);
-    const double y0 = std::ceil(v - r - 0.5), y1 = std::floor(v + r - 0.5);
-    visible[i] = r > 0 && x0 <= x1 && y0 <= y1 && x0 <= W - 1 && x1 >= 0 && y0 <= H - 1 && y1 >= 0 &&
-                 alpha_tau(double(s.o)) >= 0.0;
-    if (visible[i]) {
-      box[4 * i] = int32_t(std::max(x0, 0.0));
-      box[4 * i + 1] = int32_t(std::min(x1, double(W - 1)));
-      box[4 * i + 2] = int32_t(std::max(y0, 0.0));
-      box[4 * i + 3] = int32_t(std::min(y1, double(H - 1)));
+    project(in, cam, id, p);
+    for (int l = 0; l < GL && i0 + l < n; ++l) {
+      const int64_t i = i0 + l;
+      Splat<S>& s = proj[i];
+      s.gx = S(p.u[l]);
+      s.gy = S(p.v[l]);
+      s.r = S(p.r[l]);
+      s.A = S(p.conic[0][l]);
+      s.B = S(p.conic[1][l]);
+      s.C = S(p.conic[2][l]);
+      s.o = S(double(in.opac[i]) * p.coverage[l]);
+      s.col0 = S(std::max(p.raw[0][l], 0.0));
+      s.col1 = S(std::max(p.raw[1][l], 0.0));
+      s.col2 = S(std::max(p.raw[2][l], 0.0));
+      s.depth = S(p.pc[2][l]);
+      // pixel index ranges whose centres lie in the footprint box: x + 0.5 in [u - r, u + r]
+      const double r = double(s.r), u = double(s.gx), v = double(s.gy);
+      const double x0 = std::ceil(u - r - 0.5), x1 = std::floor(u + r - 0.5);
+      const double y0 = std::ceil(v - r - 0.5), y1 = std::floor(v + r - 0.5);
+      tau[i] = alpha_tau(double(s.o));
+      visible[i] = r > 0 && x0 <= x1 && y0 <= y1 && x0 <= W - 1 && x1 >= 0 && y0 <= H - 1 && y1 >= 0 && tau[i] >= 0.0;
+      if (visible[i]) {
+        box[4 * i] = int32_t(std::max(x0, 0.0));
+        box[4 * i + 1] = int32_t(std::min(x1, double(W - 1)));
+        box[4 * i + 2] = int32_t(std::max(y0, 0.0));
+        box[4 * i + 3] = int32_t(std::min(y1, double(H - 1)));
+      }
     }
   }
   // 2. depth order (stable: ties by index), per-rank copies (SoA, rank order)
@@ -719,14 +812,23 @@ Workspace<S>* forward(const Inputs<S>& in, const CameraParams& cam, int H, int W
   const int ntiles = ws->tiles_x * ws->tiles_y;
   ws->rank_of.assign(n, -1);
   for (int64_t r = 0; r < m; ++r) ws->rank_of[order[r]] = r;
-  std::vector<Splat<S>> sp(m);
+  Buffer<Splat<S>> sp(m);
   std::vector<int32_t> rbox(4 * m);  // footprint box per rank
   std::vector<int32_t> ry0(m), ry1(m);  // per rank: candidate pixel rows [ry0, ry1] (global, in the image)
   std::vector<int64_t> roff(m + 1, 0);  // per rank: offset of its rows' column ranges in ws->xr
   std::vector<int64_t> boff(m + 1, 0);  // per rank: its bands of tile rows (tile row, first and last tile column)
+  std::vector<double> rtau(m);  // per rank: alpha_tau
   for (int64_t r = 0; r < m; ++r) {  // serial: cheap, and each parallel region costs a barrier on a busy machine
+    if (r + 16 < m) {  // the reads by index are a gather: fetch ahead
+      const int64_t f = order[r + 16];
+      __builtin_prefetch(&proj[f]);
+      __builtin_prefetch(reinterpret_cast<const char*>(&proj[f] + 1) - 1);
+      __builtin_prefetch(&box[4 * f]);
+      __builtin_prefetch(&tau[f]);
+    }
     const int64_t i = order[r];
     sp[r] = proj[i];
+    rtau[r] = tau[i];
     for (int q = 0; q < 4; ++q) rbox[4 * r + q] = box[4 * i + q];
     // candidate rows: the box rows with one row of margin (the per-row test is in float)
     ry0[r] = std::max(box[4 * i + 2] - 1, 0);
@@ -747,8 +849,7 @@ Workspace<S>* forward(const Inputs<S>& in, const CameraParams& cam, int H, int W
     const int32_t* b = &rbox[4 * r];
     bpairs[r] = int64_t(b[1] - b[0] + 1) * (b[3] - b[2] + 1);
     int32_t* xr = ws->xr.data() + 2 * roff[r];
-    row_columns(sp[r], ry0[r], ry1[r], alpha_tau(double(sp[r].o)), std::max(b[0] - 1, 0), std::min(b[1] + 1, W - 1),
-                xr);
+    row_columns(sp[r], ry0[r], ry1[r], rtau[r], std::max(b[0] - 1, 0), std::min(b[1] + 1, W - 1), xr);
     int32_t* bt = band_tx.data() + 2 * boff[r];
     const int ty0 = b[2] / tile;
     int64_t count = 0;
@@ -799,11 +900,14 @@ Workspace<S>* forward(const Inputs<S>& in, const CameraParams& cam, int H, int W
         const Entry<S> entry{sp[r], ya, yb, roff[r] + ya - ry0[r]};
         for (int tx = tx0; tx <= tx1; ++tx) {
           const int64_t pos = cursor[ty * ws->tiles_x + tx]++;
-          ws->ent[pos] = entry;
+          store_entry(&ws->ent[pos], entry);
           ws->slot[pos] = e++;
         }
       });
     }
+#if defined(__AVX__)
+    _mm_sfence();  // the non-temporal entry stores, before the threads read them
+#endif
   }
   // 5. compositing: per tile, Gaussian after Gaussian, SIMD across 8-pixel chunks of its candidate columns
   ws->Tfinal.resize(size_t(H) * W);
@@ -914,26 +1018,38 @@ void backward(const Workspace<S>& w, const Inputs<S>& in, const CameraParams& ca
       }
     }
   }
-  // per Gaussian, in index order (sequential reads of its inputs and entry slots): its entries summed in tile
-  // order (fixed: independent of the thread count), then the projection and SH backward; culled ones get zeros
+  // per block of GL Gaussians, in index order (sequential reads of their inputs and entry slots): each one's
+  // entries summed in tile order (fixed: independent of the thread count), then the projection and SH backward;
+  // culled ones get zeros
   const int64_t n = in.n, K3 = int64_t(3) * in.K;
 #pragma omp parallel for schedule(static) num_threads(threads)
-  for (int64_t i = 0; i < n; ++i) {
-    const int64_t r = w.rank_of[i];
-    std::fill(d_sh + K3 * i, d_sh + K3 * (i + 1), S(0));
-    if (r < 0) {
+  for (int64_t i0 = 0; i0 < n; i0 += GL) {
+    const int lanes = int(std::min<int64_t>(GL, n - i0));
+    const int64_t id[GL] = {i0, std::min(i0 + 1, n - 1), std::min(i0 + 2, n - 1), std::min(i0 + 3, n - 1)};
+    std::fill(d_sh + K3 * i0, d_sh + K3 * (i0 + lanes), S(0));
+    D4 gs[NG];
+    bool any = false;
+    for (int q = 0; q < NG; ++q) gs[q] = bc(0.0);
+    for (int l = 0; l < lanes; ++l) {
+      const int64_t i = i0 + l;
+      any |= w.rank_of[i] >= 0;
+      for (int64_t e = w.ioff[i]; e < w.ioff[i + 1]; ++e)
+        for (int q = 0; q < NG; ++q) gs[q][l] += double(egrad[e * NG + q]);
+    }
+    if (any) {
+      Proj p;
+      project(in, cam, id, p);
+      project_backward(in, cam, id, lanes, p, gs, d_means, d_rot, d_scales, d_opac, d_sh);
+    }
+    for (int l = 0; l < lanes; ++l) {
+      const int64_t i = i0 + l;
+      if (w.rank_of[i] >= 0) continue;
       std::fill(d_means + 3 * i, d_means + 3 * i + 3, S(0));
       std::fill(d_rot + 9 * i, d_rot + 9 * i + 9, S(0));
       std::fill(d_scales + 3 * i, d_scales + 3 * i + 3, S(0));
+      std::fill(d_sh + K3 * i, d_sh + K3 * (i + 1), S(0));
       d_opac[i] = S(0);
-      continue;
     }
-    double gs[NG] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
-    for (int64_t e = w.ioff[i]; e < w.ioff[i + 1]; ++e)
-      for (int q = 0; q < NG; ++q) gs[q] += double(egrad[e * NG + q]);
-    Proj p;
-    project_one(in, cam, i, p);
-    project_one_backward(in, cam, i, p, gs, d_means, d_rot, d_scales, d_opac, d_sh);
   }
 }
 
