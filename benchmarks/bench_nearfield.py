@@ -41,7 +41,8 @@ def main() -> None:
     from pgc.metrics.psnr import psnr
     from pgc.pipeline.compose import compose
     from pgc.pipeline.garment import body_occluder
-    from pgc.pipeline.render import HybridRenderer, choose_kernel, spread
+    from pgc.pipeline.render import HybridRenderer, choose_kernel
+    from pgc.sampling import spread
 
     asset, capture = read_asset(args.asset), read_capture(args.capture)
     cfg = load_config(args.config)

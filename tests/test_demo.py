@@ -54,6 +54,7 @@ def test_the_demo_scene_has_near_field_detail_and_the_cotton_scene_keeps_the_ear
     from pgc.synth.generate import get_preset
 
     scene = get_preset("default")
-    assert (scene.framing, scene.detail, scene.fit, scene.views) == ("garment", "seams", "resting", 64)
+    assert (scene.framing, scene.detail, scene.fit, scene.views) == ("garment", "seams", "resting", 128)
     cotton = get_preset("cotton")
-    assert (cotton.framing, cotton.detail, cotton.fit, cotton.resolution) == ("body", "none", "loose", 256)
+    assert (cotton.framing, cotton.detail, cotton.fit, cotton.resolution, cotton.views) == ("body", "none", "loose",
+                                                                                            256, 64)

@@ -163,3 +163,28 @@ def test_colmap_dense_array_round_trip(tmp_path):
     # one plane per channel, each stored row by row (x fastest): the second value is row 0, column 1
     assert np.frombuffer(raw[6:14], np.float32)[1] == d[0, 1]
     np.testing.assert_array_equal(read_dense_array(tmp_path / "d.bin"), d)
+
+
+def test_stereo_runs_on_an_even_spread_of_the_views(registry, scene):
+    from scipy.spatial import cKDTree
+
+    from pgc.geometry.dense import dense_points
+    from pgc.geometry.options import DenseOptions
+
+    cap, gt = make_capture(body_mesh(0.02), views=24, size=96)
+    fp = pixel_footprint(cap.cameras, gt.vertices.mean(0))
+    dense = dense_points(cap, DenseOptions(stereo_views=12))
+    assert dense.stereo_ids == [0, 2, 4, 6, 8, 10, 13, 15, 17, 19, 21, 23] and len(dense.depths) == 12
+    stereo = dense.points[:dense.stereo_points]
+    dist = cKDTree(metrics.sample_surface(gt, 50_000, seed=0)[0]).query(stereo)[0]
+    assert dense.stereo_points > 300 and np.median(dist) < 0.5 * fp
+    assert dense_points(scene[0], DenseOptions(stereo_views=64)).stereo_ids == list(range(12))  # fewer: every view
+    with pytest.raises(PGCConfigError, match="stereo_views"):
+        registry.get("reconstructor", "open3d").validate_options({"stereo_views": 1})
+
+
+def test_spread_keeps_the_ends_and_spaces_evenly():
+    from pgc.sampling import spread
+
+    assert spread(list(range(12)), 6) == [0, 2, 4, 7, 9, 11]
+    assert spread(list("abc"), 5) == ["a", "b", "c"] and spread(list(range(9)), 2) == [0, 8]

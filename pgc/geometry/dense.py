@@ -14,6 +14,7 @@ from pgc.geometry.metrics import sample_surface
 from pgc.geometry.options import DenseOptions
 from pgc.geometry.raster import rasterize
 from pgc.geometry.stereo import depth_maps, depth_to_points
+from pgc.sampling import spread
 from pgc.types import Capture, Mesh
 
 
@@ -24,7 +25,9 @@ class DenseResult:
     normals: np.ndarray
     """(N, 3) unit normals, outward."""
     depths: list[np.ndarray]
-    """Filtered depth map per view (camera z, 0 where invalid)."""
+    """Filtered depth map per stereo view (camera z, 0 where invalid)."""
+    stereo_ids: list[int]
+    """Indices in ``capture.views`` of the views with a depth map (:attr:`DenseOptions.stereo_views`)."""
     field: SilhouetteField
     hull: Mesh
     """The visual hull's surface."""
@@ -43,10 +46,13 @@ def dense_points(capture: Capture, options: DenseOptions, reporter: Reporter | N
         hv, hf, field = visual_hull(views, field=field)
     centre = _axis_centre(capture.cameras)
     footprint = pixel_footprint(capture.cameras, hv.mean(0))
-    hull_depths = [rasterize(v.camera, hv, hf).depth for v in views]
-    depths = depth_maps(views, hull_depths, masks, centre, options.stereo(), reporter)
+    ids = list(range(len(views)))
+    ids = spread(ids, options.stereo_views) if options.stereo_views else ids
+    stereo = [views[i] for i in ids]
+    hull_depths = [rasterize(v.camera, hv, hf).depth for v in stereo]
+    depths = depth_maps(stereo, hull_depths, [masks[i] for i in ids], centre, options.stereo(), reporter)
     pts, nrm = [], []
-    for v, d in zip(views, depths):
+    for v, d in zip(stereo, depths):
         p, n = depth_to_points(v.camera, d)
         pts.append(p)
         nrm.append(n)
@@ -58,7 +64,7 @@ def dense_points(capture: Capture, options: DenseOptions, reporter: Reporter | N
         hp, hn = hull_fill_points(hull, points, footprint)
         points, normals = np.concatenate([points, hp]), np.concatenate([normals, hn])
         n_hull = len(hp)
-    return DenseResult(points, normals, depths, field, hull, footprint, n_stereo, n_hull)
+    return DenseResult(points, normals, depths, ids, field, hull, footprint, n_stereo, n_hull)
 
 
 def hull_fill_points(hull: Mesh, points: np.ndarray, footprint: float) -> tuple[np.ndarray, np.ndarray]:

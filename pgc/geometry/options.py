@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from pydantic import Field
+from pydantic import Field, field_validator
 
 from pgc.options import Options
 
@@ -28,7 +28,11 @@ class FinishOptions(Options):
 class DenseOptions(FinishOptions):
     """Multi-view stereo (plane sweep guided by the visual hull), shared by the open3d and colmap reconstructors."""
 
-    neighbours: int = Field(6, ge=1, le=32, description="neighbour views per reference view")
+    stereo_views: int = Field(64, ge=0, description=(
+        "views that get a depth map, evenly spread over the capture (the visual hull uses every view); stereo's "
+        "time grows with them while a denser dome adds little to a surface the remesh brings to ~15k vertices; "
+        "0 = every view"))
+    neighbours: int = Field(6, ge=1, le=32, description="neighbour views per reference view (among stereo_views)")
     top_k: int = Field(3, ge=1, le=32, description="best neighbours averaged per depth hypothesis")
     window: int = Field(7, ge=3, le=31, description="NCC window side (pixels, odd)")
     band: float = Field(0.12, gt=0.0, description="depth range swept behind the visual hull (metres)")
@@ -44,6 +48,13 @@ class DenseOptions(FinishOptions):
                                                "(the hull bounds the surface; exact where it is convex)")
     hull_margin_px: float = Field(2.0, ge=0.0, description="trim surface parts farther than this many pixel "
                                                             "footprints outside the visual hull")
+
+    @field_validator("stereo_views")
+    @classmethod
+    def _zero_or_a_pair(cls, v: int) -> int:
+        if v == 1:
+            raise ValueError("stereo needs at least 2 views: set stereo_views = 0 (every view) or >= 2")
+        return v
 
     def stereo(self):
         """The matching :class:`pgc.geometry.stereo.StereoSettings`."""

@@ -27,6 +27,7 @@ from pgc.pipeline.compose import (compose, far_field_gaussians, gaussian_uvs, hi
                                   visible_surface_uvs)
 from pgc.pipeline.garment import body_occluder
 from pgc.pipeline.stage_io import save_npz
+from pgc.sampling import spread
 from pgc.splats.binding import bind
 from pgc.types import Camera, Capture, GarmentAsset, Light, Mesh
 
@@ -34,13 +35,6 @@ from pgc.types import Camera, Capture, GarmentAsset, Light, Mesh
 RENDER_VERSION = "4"
 """Version of the code that computes the render stage: part of its cache key, raised whenever that code
 changes what it writes."""
-
-
-def spread(items: list, count: int) -> list:
-    """``count`` items evenly spread over ``items`` (all when there are fewer)."""
-    if count >= len(items):
-        return list(items)
-    return [items[int(i)] for i in np.linspace(0, len(items) - 1, count).round().astype(int)]
 
 
 @dataclass(frozen=True)

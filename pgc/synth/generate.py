@@ -62,7 +62,7 @@ class SynthPreset:
 PRESETS: dict[str, SynthPreset] = {
     "tiny": SynthPreset(views=6, resolution=64, body_edge=0.04, garment_edge=0.04, texture=256, spp=16,
                         gt_samples=2, fibre_scale=0.3, envmap_height=16),
-    "default": SynthPreset(views=64, resolution=192, body_edge=0.022, garment_edge=0.02, texture=1024, spp=64,
+    "default": SynthPreset(views=128, resolution=192, body_edge=0.022, garment_edge=0.02, texture=1024, spp=64,
                            gt_samples=4, fibre_scale=1.0, framing="garment", detail="seams", fit="resting",
                            looseness=0.012),
     "cotton": SynthPreset(views=64, resolution=256, body_edge=0.022, garment_edge=0.02, texture=1024, spp=64,

@@ -179,7 +179,8 @@ class ColmapReconstructor(Reconstructor):
         reporter = reporter or Reporter.silent()
         figures: dict[str, Any] = {}
         t0 = time.perf_counter()
-        dense = dense_points(capture, opt.model_copy(update={"hull_fill": False}), reporter)
+        # COLMAP's fusion takes a depth map of every image
+        dense = dense_points(capture, opt.model_copy(update={"hull_fill": False, "stereo_views": 0}), reporter)
         t1 = time.perf_counter()
         with tempfile.TemporaryDirectory(prefix="pgc-colmap-") as tmp:
             root = Path(tmp)
