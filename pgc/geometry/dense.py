@@ -46,8 +46,7 @@ def dense_points(capture: Capture, options: DenseOptions, reporter: Reporter | N
         hv, hf, field = visual_hull(views, field=field)
     centre = _axis_centre(capture.cameras)
     footprint = pixel_footprint(capture.cameras, hv.mean(0))
-    ids = list(range(len(views)))
-    ids = spread(ids, options.stereo_views) if options.stereo_views else ids
+    ids = spread(range(len(views)), options.stereo_views or len(views))
     stereo = [views[i] for i in ids]
     hull_depths = [rasterize(v.camera, hv, hf).depth for v in stereo]
     depths = depth_maps(stereo, hull_depths, [masks[i] for i in ids], centre, options.stereo(), reporter)

@@ -30,7 +30,7 @@ class DenseOptions(FinishOptions):
 
     stereo_views: int = Field(64, ge=0, description=(
         "views that get a depth map, evenly spread over the capture (the visual hull uses every view); stereo's "
-        "time grows with them while a denser dome adds little to a surface the remesh brings to ~15k vertices; "
+        "time grows with them, and 64 gives captures of up to 64 views the mesh they had before the option; "
         "0 = every view"))
     neighbours: int = Field(6, ge=1, le=32, description="neighbour views per reference view (among stereo_views)")
     top_k: int = Field(3, ge=1, le=32, description="best neighbours averaged per depth hypothesis")

@@ -105,27 +105,17 @@ inline D4 bc(double x) { return D4{x, x, x, x}; }
 // std::min / std::max semantics lane by lane ((b < a) ? b : a, (a < b) ? b : a)
 inline D4 vmin(const D4& a, const D4& b) { return b < a ? b : a; }
 inline D4 vmax(const D4& a, const D4& b) { return a < b ? b : a; }
-inline D4 vsqrt(const D4& x) {
+// Lane-wise sqrt, floor and ceil: one AVX instruction each, else the scalar function on every lane.
 #if defined(__AVX__)
-  return _mm256_sqrt_pd(x);
+#define PGC_LANEWISE(name, scalar, avx) inline D4 name(const D4& x) { return avx(x); }
 #else
-  return D4{std::sqrt(x[0]), std::sqrt(x[1]), std::sqrt(x[2]), std::sqrt(x[3])};
+#define PGC_LANEWISE(name, scalar, avx) \
+  inline D4 name(const D4& x) { return D4{scalar(x[0]), scalar(x[1]), scalar(x[2]), scalar(x[3])}; }
 #endif
-}
-inline D4 vfloor(const D4& x) {
-#if defined(__AVX__)
-  return _mm256_floor_pd(x);
-#else
-  return D4{std::floor(x[0]), std::floor(x[1]), std::floor(x[2]), std::floor(x[3])};
-#endif
-}
-inline D4 vceil(const D4& x) {
-#if defined(__AVX__)
-  return _mm256_ceil_pd(x);
-#else
-  return D4{std::ceil(x[0]), std::ceil(x[1]), std::ceil(x[2]), std::ceil(x[3])};
-#endif
-}
+PGC_LANEWISE(vsqrt, std::sqrt, _mm256_sqrt_pd)
+PGC_LANEWISE(vfloor, std::floor, _mm256_floor_pd)
+PGC_LANEWISE(vceil, std::ceil, _mm256_ceil_pd)
+#undef PGC_LANEWISE
 
 // Element `off` of the rows id[0..3] of an (N, stride) array, as doubles.
 template <typename S>
