@@ -57,4 +57,4 @@ def test_the_demo_scene_has_near_field_detail_and_the_cotton_scene_keeps_the_ear
     assert (scene.framing, scene.detail, scene.fit, scene.views) == ("garment", "seams", "resting", 128)
     cotton = get_preset("cotton")
     assert (cotton.framing, cotton.detail, cotton.fit, cotton.resolution, cotton.views) == ("body", "none", "loose",
-                                                                                            256, 64)
+                                                                                            256, 128)

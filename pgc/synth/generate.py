@@ -65,7 +65,7 @@ PRESETS: dict[str, SynthPreset] = {
     "default": SynthPreset(views=128, resolution=192, body_edge=0.022, garment_edge=0.02, texture=1024, spp=64,
                            gt_samples=4, fibre_scale=1.0, framing="garment", detail="seams", fit="resting",
                            looseness=0.012),
-    "cotton": SynthPreset(views=64, resolution=256, body_edge=0.022, garment_edge=0.02, texture=1024, spp=64,
+    "cotton": SynthPreset(views=128, resolution=256, body_edge=0.022, garment_edge=0.02, texture=1024, spp=64,
                           gt_samples=4, fibre_scale=1.0),
     "large": SynthPreset(views=64, resolution=1024, body_edge=0.015, garment_edge=0.012, texture=2048, spp=64,
                          gt_samples=4, fibre_scale=2.0, envmap_height=256),
