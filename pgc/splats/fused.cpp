@@ -255,11 +255,10 @@ void project(const Inputs<S>& in, const CameraParams& cam, const int64_t* id, Pr
   D4 basis[16];
   sh_basis(p.dir, in.count, basis);
   const int64_t K3 = int64_t(in.K) * 3;
-  for (int ch = 0; ch < 3; ++ch) {
-    D4 acc = bc(0.0);
-    for (int k = 0; k < in.count; ++k) acc += basis[k] * gather(in.sh, K3, id, 3 * k + ch);
-    p.raw[ch] = acc + 0.5;
-  }
+  D4 acc[3] = {bc(0.0), bc(0.0), bc(0.0)};  // the channels' sums interleaved: three independent FMA chains
+  for (int k = 0; k < in.count; ++k)
+    for (int ch = 0; ch < 3; ++ch) acc[ch] += basis[k] * gather(in.sh, K3, id, 3 * k + ch);
+  for (int ch = 0; ch < 3; ++ch) p.raw[ch] = acc[ch] + 0.5;
 }
 
 // Screen-space gradients gs (NG) of the Gaussians id[0..lanes-1] (mean2d x, y; conic a, b, c; colour r, g, b;
@@ -450,32 +449,40 @@ inline double alpha_tau(double o) {
   return tau * (1.0 + 1e-3) + 1e-3;
 }
 
-// Candidate columns [xa, xb] (global) of the pixel rows [ry0, ry1] of the Gaussian sp: pixels whose
-// centre may lie in its footprint box (columns [bx0, bx1], one pixel of margin) and may have alpha >= 1/255 (the
-// ellipse q <= tau solved for dx, x = gx - (B / A) dy +- sqrt(((B^2 - A C) dy^2 + A tau) / A^2), with one pixel of
-// margin; the exact test is per pixel). Rows the per-pixel test rejects (float |dy| > r) get an empty range.
+// Candidate columns [xa, xb] (global) of the pixel rows [ry0, ry1] of the Gaussian sp: pixels whose centre may
+// lie in its footprint box (columns [bx0, bx1], one pixel of margin) and may have alpha >= 1/255, the ellipse
+// q <= tau solved for dx: x = c +- h, c = gx - (B / A) dy - 0.5, h^2 = k2 dy^2 + k0 = ((B^2 - A C) dy^2 + A tau) / A^2.
+// A row is a candidate only if a column lies within the tight bound: h^2 plus the float rounding of the per-pixel
+// power (2^-20 of its terms' magnitudes over A, dx^2 + 2 |B / A dx dy| + (C / A) dy^2, bounded at |dy| <= r + 1,
+// |dx| <= (|B / A| + sqrt(k2)) |dy| + sqrt(k0) by (7 (B / A)^2 + 6 k2 + C / A) (r + 1)^2 + 6 k0), h plus 1e-3 px
+// (rounding of dx). xb is the tight bound; xa is floor(c - h) - 1, where a row's chunks started before the tight
+// bound, so every pixel keeps its lane and the gradients' float32 sums stay the same bytes (the rows and tiles the
+// tight bound drops held no composited pixel: they added zeros). The exact test is per pixel. Rows the per-pixel
+// test rejects (float |dy| > r) or without a candidate column get an empty range.
 template <typename S>
 inline void row_columns(const Splat<S>& sp, int ry0, int ry1, double tau, int64_t bx0, int64_t bx1, int32_t* out) {
   const double A = sp.A, B = sp.B, C = sp.C, gx = sp.gx;
   const bool ellipse = A > 0.0;
   const double kb = ellipse ? B / A : 0.0, k2 = ellipse ? (B * B - A * C) / (A * A) : 0.0;
-  const double k0 = ellipse ? tau / A : 0.0;
+  const double k0 = ellipse ? tau / A : 0.0, dmax = double(sp.r) + 1.0, kc = ellipse ? C / A : 0.0;
+  const double slack = 0x1p-20 * ((7.0 * kb * kb + 6.0 * std::max(k2, 0.0) + kc) * dmax * dmax + 6.0 * k0);
   for (int y = ry0; y <= ry1; y += GL, out += 2 * GL) {  // GL rows at a time, branch-free
     D4 d;  // dy in S, as the per-pixel test computes it
     for (int l = 0; l < GL; ++l) d[l] = double(S(y + l) + S(0.5) - sp.gy);
     auto keep = (vmax(d, -d) > double(sp.r)) == 0;
     D4 xa = bc(double(bx0)), xb = bc(double(bx1));
     if (ellipse) {
-      const D4 h2 = k2 * d * d + k0;
-      keep &= (h2 < 0.0) == 0;
-      const D4 h = vsqrt(h2), c = gx - kb * d - 0.5;
-      xa = vmax(xa, floor_clamp(c - h, bx0 - 2, bx1 + 2) - 1.0);
-      xb = vmin(xb, -floor_clamp(-(c + h), -bx1 - 2, -bx0 + 2) + 1.0);
+      const D4 h2 = k2 * d * d + k0, c = gx - kb * d - 0.5;
+      const D4 ht = vsqrt(h2 + slack) + 1e-3;  // NaN where h2 + slack < 0: an empty tight range
+      xb = vmin(xb, floor_clamp(c + ht, bx0 - 2, bx1 + 2));
+      keep &= (vmax(xa, -floor_clamp(ht - c, -bx1 - 2, -bx0 + 2)) > xb) == 0;  // ceil(c - ht) <= xb
+      xa = vmax(xa, floor_clamp(c - vsqrt(h2), bx0 - 2, bx1 + 2) - 1.0);
     }
     keep &= (xa > xb) == 0;
+    const D4 oa = keep ? xa : bc(1.0), ob = keep ? xb : bc(0.0);  // selects: empty rows are frequent
     for (int l = 0; l < GL && y + l <= ry1; ++l) {
-      out[2 * l] = keep[l] ? int32_t(xa[l]) : 1;
-      out[2 * l + 1] = keep[l] ? int32_t(xb[l]) : 0;
+      out[2 * l] = int32_t(oa[l]);
+      out[2 * l + 1] = int32_t(ob[l]);
     }
   }
 }
@@ -682,11 +689,12 @@ inline void chunk_G<float>(const Splat<float>& s, float dy, const float* px, flo
 template <>
 inline void composite_chunk<float>(const Splat<float>& s, float dy, const float* px, float* T, float* p0, float* p1,
                                    float* p2, float* pz, int32_t* lp, int32_t* dp, int32_t rank) {
+  const __m256i done = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(dp));
+  const __m256 live = _mm256_castsi256_ps(_mm256_cmpeq_epi32(done, _mm256_setzero_si256()));
+  if (_mm256_testz_ps(live, live)) return;  // every pixel has stopped: nothing changes
   __m256 dx, G, oG;
   chunk_alpha(s, dy, px, dx, G, oG);
   const __m256 a = _mm256_min_ps(oG, _mm256_set1_ps(0.99f));
-  const __m256i done = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(dp));
-  const __m256 live = _mm256_castsi256_ps(_mm256_cmpeq_epi32(done, _mm256_setzero_si256()));
   const __m256 ok = _mm256_and_ps(_mm256_and_ps(live, in_box(s, dx)),
                                   _mm256_cmp_ps(oG, _mm256_set1_ps(1.0f / 255.0f), _CMP_GE_OQ));
   const __m256 t = _mm256_loadu_ps(T);
@@ -898,12 +906,18 @@ Workspace<S>* forward(const Inputs<S>& in, const CameraParams& cam, int H, int W
   // per band of tile rows of the footprint box: the first and last tile column holding a candidate pixel inside
   // the box (the tiles of the contract's box that the alpha ellipse reaches; none when first > last)
   std::vector<int32_t> band_tx(2 * boff[m]);
+  std::vector<int32_t> rows(2 * m);  // per rank: the first and last of its rows that have candidate columns
 #pragma omp parallel for schedule(static) num_threads(threads)
   for (int64_t r = 0; r < m; ++r) {
     const int32_t* b = &rbox[4 * r];
     bpairs[r] = int64_t(b[1] - b[0] + 1) * (b[3] - b[2] + 1);
     int32_t* xr = ws->xr.data() + 2 * roff[r];
     row_columns(sp[r], ry0[r], ry1[r], rtau[r], std::max(b[0] - 1, 0), std::min(b[1] + 1, W - 1), xr);
+    int ya = ry0[r], yb = ry1[r];  // rows without candidate columns (empty: xa > xb) off both ends
+    while (ya < yb && xr[2 * (ya - ry0[r])] > xr[2 * (ya - ry0[r]) + 1]) ++ya;
+    while (yb > ya && xr[2 * (yb - ry0[r])] > xr[2 * (yb - ry0[r]) + 1]) --yb;
+    rows[2 * r] = ya;
+    rows[2 * r + 1] = yb;
     int32_t* bt = band_tx.data() + 2 * boff[r];
     const int ty0 = b[2] / tile;
     int64_t count = 0;
@@ -950,7 +964,7 @@ Workspace<S>* forward(const Inputs<S>& in, const CameraParams& cam, int H, int W
     for (int64_t r = 0; r < m; ++r) {
       int64_t e = ws->ioff[order[r]];
       bands(r, [&](int ty, int tx0, int tx1) {
-        const int ya = std::max(ry0[r], ty * tile), yb = std::min(ry1[r], std::min(ty * tile + tile, H) - 1);
+        const int ya = std::max(rows[2 * r], ty * tile), yb = std::min(rows[2 * r + 1], ty * tile + tile - 1);
         const Entry<S> entry{sp[r], ya, yb, roff[r] + ya - ry0[r]};
         for (int tx = tx0; tx <= tx1; ++tx) {
           const int64_t pos = cursor[ty * ws->tiles_x + tx]++;
