@@ -5,7 +5,34 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pgc.types import Camera, Capture, Light, Mesh, View
+from pgc.types import Camera, Capture, Light, Mesh, View, WorldGaussians
+
+
+def tilted_camera(w: int = 32, h: int = 24, f: float = 40.0, skew: float = 0.0) -> Camera:
+    """A small pinhole camera tilted 0.1 rad about x, off-centre principal point, optional skew (px)."""
+    R = np.array([[1.0, 0, 0], [0, np.cos(0.1), -np.sin(0.1)], [0, np.sin(0.1), np.cos(0.1)]])
+    return Camera(K=[[f, skew, w / 2 + 0.3], [0, f * 1.05, h / 2 - 0.2], [0, 0, 1]], R=R, t=[0.02, -0.01, 0.1],
+                  width=w, height=h)
+
+
+def overlapping_gaussians(n: int, seed: int, sh_k: int = 16) -> WorldGaussians:
+    """``n`` random Gaussians in front of :func:`tilted_camera` (depth complexity in the tens), SH with
+    ``sh_k`` coefficients per channel."""
+    rng = np.random.default_rng(seed)
+    means = np.c_[rng.uniform(-0.35, 0.35, n), rng.uniform(-0.25, 0.25, n), rng.uniform(0.8, 1.6, n)]
+    return WorldGaussians(means=means, quats=rng.normal(size=(n, 4)), scales=rng.uniform(0.01, 0.12, (n, 3)),
+                          opacities=rng.uniform(0.05, 1.0, n), sh=rng.normal(0, 0.4, (n, sh_k, 3)))
+
+
+@pytest.fixture
+def one_torch_thread():
+    """Run the test with one torch thread (tiny tensors: threading only adds overhead on a shared machine)."""
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
 
 
 def look_at_camera(center, target, width: int, height: int, focal: float, name: str) -> Camera:

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from conftest import overlapping_gaussians as _scene, tilted_camera
 from pgc.splats import fused
 from pgc.splats.reference import render_reference
 from pgc.types import Camera, WorldGaussians
@@ -18,14 +19,7 @@ from pgc_torch.splat.rasterizer import rasterize  # noqa: E402
 from pgc_torch.splat.renderer import TorchSplatRenderer  # noqa: E402
 
 FIELDS = ("means", "rotmats", "scales", "opacities", "sh")
-
-
-@pytest.fixture(autouse=True)
-def _one_torch_thread():
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -34,16 +28,7 @@ def _kernel_builds():
 
 
 def _camera(w: int = 32, h: int = 24, f: float = 40.0) -> Camera:
-    R = np.array([[1.0, 0, 0], [0, np.cos(0.1), -np.sin(0.1)], [0, np.sin(0.1), np.cos(0.1)]])
-    return Camera(K=[[f, 0.3, w / 2 + 0.3], [0, f * 1.05, h / 2 - 0.2], [0, 0, 1]], R=R, t=[0.02, -0.01, 0.1],
-                  width=w, height=h)
-
-
-def _scene(n: int, seed: int, sh_k: int = 16) -> WorldGaussians:
-    rng = np.random.default_rng(seed)
-    means = np.c_[rng.uniform(-0.35, 0.35, n), rng.uniform(-0.25, 0.25, n), rng.uniform(0.8, 1.6, n)]
-    return WorldGaussians(means=means, quats=rng.normal(size=(n, 4)), scales=rng.uniform(0.01, 0.12, (n, 3)),
-                          opacities=rng.uniform(0.05, 1.0, n), sh=rng.normal(0, 0.4, (n, sh_k, 3)))
+    return tilted_camera(w, h, f, skew=0.3)
 
 
 def _hard_scene() -> WorldGaussians:

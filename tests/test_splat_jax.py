@@ -5,10 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from conftest import overlapping_gaussians as _scene, tilted_camera as _camera
 from pgc.splats.binding import bind as np_bind
 from pgc.splats.quaternion import quat_to_rotmat as np_quat_to_rotmat
 from pgc.splats.reference import render_reference
-from pgc.types import Camera, GaussianSet, WorldGaussians
+from pgc.types import GaussianSet, WorldGaussians
 
 jax = pytest.importorskip("jax")
 import jax.numpy as jnp  # noqa: E402
@@ -21,20 +22,6 @@ from pgc_jax.splat.renderer import JaxSplatRenderer  # noqa: E402
 
 W, H = 32, 24
 COMPOSITORS = ["xla", "fused"]
-
-
-def _camera(w: int = W, h: int = H, f: float = 40.0) -> Camera:
-    R = np.array([[1.0, 0, 0], [0, np.cos(0.1), -np.sin(0.1)], [0, np.sin(0.1), np.cos(0.1)]])
-    return Camera(K=[[f, 0.0, w / 2 + 0.3], [0, f * 1.05, h / 2 - 0.2], [0, 0, 1]], R=R, t=[0.02, -0.01, 0.1],
-                  width=w, height=h)
-
-
-def _scene(n: int, seed: int) -> WorldGaussians:
-    """Many overlapping Gaussians in front of the camera (depth complexity in the tens)."""
-    rng = np.random.default_rng(seed)
-    means = np.c_[rng.uniform(-0.35, 0.35, n), rng.uniform(-0.25, 0.25, n), rng.uniform(0.8, 1.6, n)]
-    return WorldGaussians(means=means, quats=rng.normal(size=(n, 4)), scales=rng.uniform(0.01, 0.12, (n, 3)),
-                          opacities=rng.uniform(0.05, 1.0, n), sh=rng.normal(0, 0.4, (n, 16, 3)))
 
 
 def _assert_matches_reference(world, cam, background, options=None, sh_degree=None, atol=1e-5):
