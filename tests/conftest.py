@@ -9,7 +9,9 @@ from pgc.types import Camera, Capture, Light, Mesh, View, WorldGaussians
 
 
 def tilted_camera(w: int = 32, h: int = 24, f: float = 40.0, skew: float = 0.0) -> Camera:
-    """A small pinhole camera tilted 0.1 rad about x, off-centre principal point, optional skew (px)."""
+    """A small pinhole camera tilted 0.1 rad about x, off-centre principal point, optional skew (px).
+
+    The splat tests size their backgrounds and cotangents for the default 32 x 24 px."""
     R = np.array([[1.0, 0, 0], [0, np.cos(0.1), -np.sin(0.1)], [0, np.sin(0.1), np.cos(0.1)]])
     return Camera(K=[[f, skew, w / 2 + 0.3], [0, f * 1.05, h / 2 - 0.2], [0, 0, 1]], R=R, t=[0.02, -0.01, 0.1],
                   width=w, height=h)
