@@ -32,7 +32,8 @@ def _peak_mb() -> float:
 def noise_study(resolution: int, fabric: str, spps: list[int], samplers: list[str], ref_spp: int) -> list[dict]:
     from pgc.synth import fabrics, garments, rig
     from pgc.synth.body import make_body
-    from pgc.synth.render import SceneGeometry, build_scene, ground_truth_layers, render_color
+    from pgc.config import load
+    from pgc.synth.render import SceneGeometry, scene_renderer
 
     body = make_body(edge_length=0.03)
     cloth = garments.make_garment(body, "tshirt", resolution=0.03)
@@ -40,14 +41,15 @@ def noise_study(resolution: int, fabric: str, spps: list[int], samplers: list[st
     material, normal_map = fabrics.make_material(fab, cloth, 512, 0)
     fibres = fabrics.make_fibres(fab, cloth, material, 0)
     geometry = SceneGeometry(body.vertices, body.faces, cloth, material, normal_map, fibres)
-    scene, labels = build_scene(geometry, rig.capture_light())
+    renderer = scene_renderer(load())
+    scene, labels = renderer.build_scene(geometry, rig.capture_light())
     cam = rig.dome_cameras(8, resolution, resolution, center=(0, 0.85, 0), distance=2.6, subject_radius=0.88)[2]
-    fg = ground_truth_layers(scene, labels, geometry, cam, 2)["mask"] == 1
+    fg = renderer.ground_truth_layers(scene, labels, geometry, cam, 2)["mask"] == 1
 
     def render(spp: int, seed: int, sampler: str) -> tuple[np.ndarray, float]:
-        render_color(scene, cam, spp, seed, sampler)  # compile first (kernels are cached)
+        renderer.render_color(scene, cam, spp, seed, sampler)  # compile first (kernels are cached)
         t = time.perf_counter()
-        img, _ = render_color(scene, cam, spp, seed, sampler)
+        img, _ = renderer.render_color(scene, cam, spp, seed, sampler)
         return img, time.perf_counter() - t
 
     reference, ref_seconds = render(ref_spp, 999, "independent")
@@ -69,14 +71,17 @@ def noise_study(resolution: int, fabric: str, spps: list[int], samplers: list[st
 
 
 def preset_times(presets: list[str], out: Path) -> list[dict]:
+    from pgc.config import load
     from pgc.events import Reporter
     from pgc.synth.generate import generate, get_preset
+    from pgc.synth.render import scene_renderer
 
+    renderer = scene_renderer(load())
     records = []
     for name in presets:
         reporter = Reporter.silent()
         t = time.perf_counter()
-        generate(out / f"capture_{name}", name, reporter=reporter)
+        generate(out / f"capture_{name}", name, reporter=reporter, renderer=renderer)
         seconds = time.perf_counter() - t
         p = get_preset(name)
         records.append({"role": "synth", "implementation": "pgc-synth", "preset": name,

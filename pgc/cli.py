@@ -6,6 +6,7 @@ Importing this module (and ``pgc --help``) stays light: no torch, jax, mitsuba, 
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import os
 import signal
@@ -98,16 +99,24 @@ def _interrupted(exc: BaseException) -> bool:
     return False
 
 
+DISK_FIXES = {errno.ENOSPC: "the disk is full: free space on it or write to another disk",
+              errno.EDQUOT: "the disk quota is used up: free space or write to another disk",
+              errno.EROFS: "the file system is read-only: give a path on a writable disk",
+              errno.EIO: "the disk reported an I/O error: check it, or write to another disk"}
+"""What fixes the OS errors that concern the disk rather than the path (by ``errno``)."""
+
+
 def os_error_message(exc: OSError) -> str:
-    """One line for an OS error: the path, the system's reason and what usually fixes it."""
-    path = exc.filename if exc.filename is not None else "(path unknown)"
+    """One line for an OS error: the path (the writers attach their output's path to errors that name no file,
+    :func:`pgc.checks.naming_output`), the system's reason and what usually fixes it."""
     reason = exc.strerror or str(exc)
-    fix = {PermissionError: "check the permissions, or give a folder you can write",
-           NotADirectoryError: "a part of the path is a file: give a folder path",
-           IsADirectoryError: "it is a folder: give a file path",
-           FileNotFoundError: "check the path",
-           FileExistsError: "remove it or give another path"}.get(type(exc), "check the path and the disk")
-    return f"{path}: {reason}; {fix}"
+    fix = DISK_FIXES.get(exc.errno) or {
+        PermissionError: "check the permissions, or give a folder you can write",
+        NotADirectoryError: "a part of the path is a file: give a folder path",
+        IsADirectoryError: "it is a folder: give a file path",
+        FileNotFoundError: "check the path",
+        FileExistsError: "remove it or give another path"}.get(type(exc), "check the path and the disk")
+    return reason + "; " + fix if exc.filename is None else f"{exc.filename}: {reason}; {fix}"
 
 
 def _fail(args: argparse.Namespace, message: str, code: int) -> int:

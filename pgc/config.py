@@ -30,7 +30,8 @@ from typing import Any
 
 import pydantic
 
-from pgc.errors import PGCConfigError, PGCPluginError
+from pgc.errors import PGCConfigError, PGCDataError, PGCPluginError
+from pgc.io.limits import read_toml
 from pgc.options import Options
 from pgc.registry import ROLES, Implementation, Registry
 
@@ -77,8 +78,9 @@ def load_toml(path: str | Path) -> dict[str, Any]:
     if not path.is_file():
         raise PGCConfigError(f"{path}: config file not found")
     try:
-        with open(path, "rb") as f:
-            return tomllib.load(f)
+        return read_toml(path)
+    except PGCDataError as exc:  # a size or nesting limit
+        raise PGCConfigError(str(exc)) from None
     except tomllib.TOMLDecodeError as exc:
         raise PGCConfigError(f"{path}: not valid TOML: {exc}") from None
     except UnicodeDecodeError as exc:
@@ -129,11 +131,31 @@ class RunConfig:
         return self.stages[name]
 
     def role_key(self, role: str) -> dict[str, Any]:
-        """What of the configuration decides a role's results (its implementation and options), for
-        cache keys."""
-        choice = self.roles[role]
+        """What of the configuration decides a role's results (its implementation, options and the version of
+        the distribution providing it), for cache keys; name None when nothing is registered for the role."""
+        choice = self.roles.get(role)
+        if choice is None:
+            return {"role": role, "name": None}
         opts = choice.options.get(choice.name)
-        return {"role": role, "name": choice.name, "options": None if opts is None else opts.model_dump(mode="json")}
+        return {"role": role, "name": choice.name, "options": None if opts is None else opts.model_dump(mode="json"),
+                "version": choice.implementation.version}
+
+    def check_implementations(self) -> None:
+        """Check every chosen available implementation before any work (:func:`pgc.registry.check_implementation`:
+        importable, implementing its role); the bad ones raise one :class:`PGCPluginError` naming each. Imports
+        the chosen factories (and so their libraries)."""
+        problems = []
+        for role, choice in self.roles.items():
+            for impl in choice.implementations:
+                if not impl.available:
+                    continue
+                try:
+                    impl.check()
+                except PGCPluginError as exc:
+                    problems.append(f"[{role}] {exc}")
+        if problems:
+            raise PGCPluginError(f"{self.source}: " + "; ".join(problems) + "; fix or uninstall the plugin, block it "
+                                 "([plugins] block), or choose another implementation in use")
 
     def to_dict(self) -> dict[str, Any]:
         """The resolved configuration with every default, in the TOML layout (and the choices made)."""

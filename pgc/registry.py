@@ -5,19 +5,28 @@ the ``pgc_register_implementations`` hook. Specs are cheap: the factory is a laz
 reference and availability is decided by looking up module specs, never by importing them. Loading is
 defensive: a plugin that fails to import or to register is listed with its error and the rest still work.
 
+A plugin's import and registration run with SIGINT and SIGTERM deferred (:func:`plugin_code`): any exception
+they raise, ``SystemExit`` and ``KeyboardInterrupt`` included, is the plugin's and marks it broken, while a real
+Ctrl-C (or SIGTERM) that arrives meanwhile is delivered once the plugin's code has returned, so it still ends
+the command (exit 130).
+
 Blocking: entry-point names or ``role:name`` pairs listed in the environment variable ``PGC_BLOCK_PLUGINS``
 (comma separated) or passed as ``block=`` are excluded.
 """
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import importlib.metadata as metadata
 import importlib.util
+import inspect
 import os
+import signal
+import threading
 import traceback
 from dataclasses import dataclass, field
-from typing import Any, Iterable
+from typing import Any, Iterable, Iterator
 
 import pluggy
 
@@ -25,7 +34,8 @@ from pgc import hookspecs
 from pgc.errors import PGCConfigError, PGCPluginError
 from pgc.hookspecs import hookimpl  # re-exported for plugin authors
 
-__all__ = ["ImplementationSpec", "Implementation", "Registry", "ROLES", "hookimpl", "default_registry"]
+__all__ = ["ImplementationSpec", "Implementation", "Registry", "ROLES", "check_implementation", "hookimpl",
+           "default_registry"]
 
 ENTRY_POINT_GROUP = "pgc"
 BLOCK_ENV = "PGC_BLOCK_PLUGINS"
@@ -54,6 +64,31 @@ def load_reference(ref: str) -> Any:
     for part in attr.split("."):
         obj = getattr(obj, part)
     return obj
+
+
+DEFERRED_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+@contextlib.contextmanager
+def plugin_code() -> Iterator[None]:
+    """Run a plugin's import or hook with SIGINT and SIGTERM deferred until it returns.
+
+    While it runs, a KeyboardInterrupt can only come from the plugin itself (raised by its code, not by a
+    signal), so callers treat it as the plugin's failure; a signal received meanwhile is raised again once the
+    previous handlers are back, and ends the command as usual. Outside the main thread (where Python delivers no
+    signals) nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received: list[int] = []
+    previous = {sig: signal.signal(sig, lambda signum, frame: received.append(signum)) for sig in DEFERRED_SIGNALS}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
+        for sig in dict.fromkeys(received):
+            signal.raise_signal(sig)
 
 
 def module_available(name: str) -> bool:
@@ -91,6 +126,7 @@ class Implementation:
     plugin: str
     """The entry-point name that registered it."""
     missing: tuple[str, ...] = ()
+    _checked: type | PGCPluginError | None = field(default=None, init=False, repr=False, compare=False)
 
     @property
     def role(self) -> str:
@@ -111,8 +147,54 @@ class Implementation:
         hint = f"pip install 'pgc[{self.spec.extra}]'" if self.spec.extra else f"pip install {' '.join(self.missing)}"
         return f"missing module(s) {', '.join(self.missing)}; install with: {hint}"
 
+    @property
+    def label(self) -> str:
+        """``role 'name' (plugin 'P', distribution D)``: how messages name it."""
+        return f"{self.role} '{self.name}' (plugin '{self.plugin}', distribution {self.provider})"
+
+    @property
+    def version(self) -> str | None:
+        """The version of the distribution that provides it (None for one registered by hand)."""
+        try:
+            return metadata.version(self.provider)
+        except (metadata.PackageNotFoundError, ValueError):
+            return None
+
+    def check(self) -> type:
+        """The factory class, once checked to implement the role (:func:`check_implementation`; once per
+        implementation, the outcome kept)."""
+        if self._checked is None:
+            try:
+                self._checked = check_implementation(self)
+            except PGCPluginError as exc:
+                self._checked = exc
+        if isinstance(self._checked, PGCPluginError):
+            raise self._checked
+        return self._checked
+
+    def problem(self) -> str | None:
+        """Why it cannot be used (its missing modules, or what :meth:`check` finds), or None; imports the
+        factory of an available one."""
+        if not self.available:
+            return self.reason
+        try:
+            self.check()
+        except PGCPluginError as exc:
+            return str(exc)
+        return None
+
     def options_model(self) -> type | None:
-        return None if self.spec.options is None else load_reference(self.spec.options)
+        """The options model (None for no options), imported and checked to subclass :class:`pgc.options.Options`
+        (a light module: listing and validating configs import it, never the factory)."""
+        from pgc.options import Options
+
+        if self.spec.options is None:
+            return None
+        model = load_plugin_reference(self, "options model", self.spec.options)
+        if not (isinstance(model, type) and issubclass(model, Options)):
+            raise PGCPluginError(f"{self.label}: options model {self.spec.options} is not a subclass of "
+                                 "pgc.options.Options")
+        return model
 
     def validate_options(self, options: dict[str, Any] | None, where: str = "") -> Any:
         """Validate ``options`` against the options model; unknown keys and wrong types fail clearly."""
@@ -129,26 +211,56 @@ class Implementation:
             return model.model_validate(options)
         except pydantic.ValidationError as exc:
             fields = sorted(model.model_fields)
-            lines = []
+            problems = []
             for err in exc.errors():
                 loc = ".".join(str(p) for p in err["loc"])
-                lines.append(f"  option '{loc}': {err['msg']} (got {err.get('input')!r})")
+                got = repr(err.get("input"))
+                got = got if len(got) <= 60 else got[:57] + "..."
+                problems.append(f"option '{loc}': {' '.join(str(err['msg']).split())} (got {got})")
             raise PGCConfigError(
-                f"{where or self.role}: invalid options for {self.role} '{self.name}':\n" + "\n".join(lines)
-                + f"\n  valid options: {', '.join(fields) or '(none)'}") from None
+                f"{where or self.role}: invalid options for {self.role} '{self.name}': " + "; ".join(problems)
+                + f"; valid options: {', '.join(fields) or '(none)'}") from None
 
     def create(self, options: dict[str, Any] | Any | None = None) -> Any:
-        """Build the implementation with validated options (a dict or an already validated model)."""
-        if not self.available:
-            raise PGCPluginError(f"{self.role} '{self.name}' is unavailable: {self.reason}")
+        """Build the implementation with validated options (a dict or an already validated model), after
+        :meth:`check`."""
+        cls = self.check()
         if options is None or isinstance(options, dict):
             options = self.validate_options(options)
-        try:
-            cls = load_reference(self.spec.factory)
-        except (Exception, SystemExit) as exc:  # an import error (or sys.exit) inside the plugin: report it
-            raise PGCPluginError(f"{self.role} '{self.name}': cannot import {self.spec.factory}: "
-                                 f"{type(exc).__name__}: {exc}") from exc
         return cls(options) if options is not None else cls()
+
+
+def load_plugin_reference(impl: Implementation, what: str, ref: str) -> Any:
+    """``ref`` of ``impl``'s plugin imported as the plugin's code (:func:`plugin_code`); a failure raises
+    :class:`PGCPluginError` naming the implementation and ``what`` could not be imported."""
+    with plugin_code():
+        try:
+            return load_reference(ref)
+        except BaseException as exc:  # anything raised while importing the plugin (sys.exit included) is its own
+            raise PGCPluginError(f"{impl.label}: cannot import {what} {ref}: {type(exc).__name__}: {exc}") from exc
+
+
+def check_implementation(impl: Implementation) -> type:
+    """Import ``impl``'s factory and check that it implements its role: a class subclassing the role's interface
+    (:data:`ROLES`) with no abstract method left, and an options model (when declared) subclassing
+    :class:`pgc.options.Options`. Returns the class; anything else raises :class:`PGCPluginError` naming the
+    role, the implementation, its plugin and distribution, and what is wrong. An unavailable implementation
+    fails with its missing modules and their install hint."""
+    if not impl.available:
+        raise PGCPluginError(f"{impl.role} '{impl.name}' is unavailable: {impl.reason}")
+    cls = load_plugin_reference(impl, "factory", impl.spec.factory)
+    interface = load_reference(ROLES[impl.role])
+    if not isinstance(cls, type):
+        raise PGCPluginError(f"{impl.label}: factory {impl.spec.factory} is a {type(cls).__name__}, not a class "
+                             f"subclassing {ROLES[impl.role]}")
+    if not issubclass(cls, interface):
+        raise PGCPluginError(f"{impl.label}: factory {impl.spec.factory} does not subclass the role's interface "
+                             f"{ROLES[impl.role]}")
+    if inspect.isabstract(cls):
+        raise PGCPluginError(f"{impl.label}: factory {impl.spec.factory} leaves abstract method(s) "
+                             f"{', '.join(sorted(cls.__abstractmethods__))} of {ROLES[impl.role]} unimplemented")
+    impl.options_model()
+    return cls
 
 
 @dataclass
@@ -179,28 +291,30 @@ class Registry:
             provider = ep.dist.name if ep.dist is not None else ep.name
             if ep.name in registry.blocked:
                 continue
-            try:
-                module = ep.load()
-            except (Exception, SystemExit) as exc:  # a plugin calling sys.exit on import must not end the caller
-                registry.broken.append(BrokenPlugin(ep.name, provider, f"{type(exc).__name__}: {exc}",
-                                                    traceback.format_exc()))
-                continue
+            with plugin_code():
+                try:
+                    module = ep.load()
+                except BaseException as exc:  # a plugin's import (sys.exit or KeyboardInterrupt included) is its own
+                    registry.broken.append(BrokenPlugin(ep.name, provider, f"{type(exc).__name__}: {exc}",
+                                                        traceback.format_exc()))
+                    continue
             registry.add_plugin(module, ep.name, provider)
         return registry
 
     def add_plugin(self, plugin: Any, name: str, provider: str | None = None) -> None:
         """Register a plugin object/module: its hooks are attached and its implementations collected."""
         provider = provider or name
-        try:
-            self.plugin_manager.register(plugin, name=name)
-            specs = getattr(plugin, "pgc_register_implementations", None)
-            specs = list(specs()) if specs is not None else []
-            for spec in specs:
-                self.add(spec, provider=provider, plugin=name)
-        except (Exception, SystemExit) as exc:
-            if self.plugin_manager.is_registered(plugin):
-                self.plugin_manager.unregister(plugin)
-            self.broken.append(BrokenPlugin(name, provider, f"{type(exc).__name__}: {exc}", traceback.format_exc()))
+        with plugin_code():
+            try:
+                self.plugin_manager.register(plugin, name=name)
+                specs = getattr(plugin, "pgc_register_implementations", None)
+                for spec in list(specs()) if specs is not None else []:
+                    self.add(spec, provider=provider, plugin=name)
+            except BaseException as exc:  # the plugin's hook, KeyboardInterrupt included (see plugin_code)
+                if self.plugin_manager.is_registered(plugin):
+                    self.plugin_manager.unregister(plugin)
+                self.broken.append(BrokenPlugin(name, provider, f"{type(exc).__name__}: {exc}",
+                                                traceback.format_exc()))
 
     def add(self, spec: ImplementationSpec, provider: str = "local", plugin: str = "local") -> None:
         """Add one implementation. A duplicate (role, name) or an unknown role is an error."""

@@ -11,6 +11,8 @@ Conventions (docs/conventions.md):
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -27,6 +29,16 @@ def _check_finite(name: str, array: np.ndarray, where: str) -> None:
         bad = int(np.size(array) - np.count_nonzero(np.isfinite(array)))
         raise PGCDataError(f"{where}: field '{name}' has {bad} non-finite values (NaN or Inf); "
                            "fix or remove them before loading")
+
+
+def _pixels(value: Any, name: str, where: str) -> int:
+    """``value`` as an int if it is a whole number (``64`` or ``64.0``), else a PGCDataError: an image side is
+    never truncated (``int(63.9)`` would be 63)."""
+    whole = isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)) \
+        and math.isfinite(value) and float(value).is_integer()
+    if not whole:
+        raise PGCDataError(f"{where}: {name} must be a whole number of pixels, got {value!r}; give an integer")
+    return int(value)
 
 
 @dataclass
@@ -50,8 +62,8 @@ class Camera:
         self.K = np.asarray(self.K, dtype=np.float64).reshape(3, 3)
         self.R = np.asarray(self.R, dtype=np.float64).reshape(3, 3)
         self.t = np.asarray(self.t, dtype=np.float64).reshape(3)
-        self.width, self.height = int(self.width), int(self.height)
         where = f"camera '{self.name}'"
+        self.width, self.height = _pixels(self.width, "width", where), _pixels(self.height, "height", where)
         for n in ("K", "R", "t"):
             _check_finite(n, getattr(self, n), where)
         if self.width <= 0 or self.height <= 0:
@@ -385,8 +397,9 @@ class BodyMotion:
         if self.vertices.ndim != 3 or self.vertices.shape[2] != 3:
             raise PGCDataError(f"motion '{self.name}': vertices must be (T, V, 3), got {self.vertices.shape}")
         _check_finite("vertices", self.vertices, f"motion '{self.name}'")
-        if self.fps <= 0:
-            raise PGCDataError(f"motion '{self.name}': fps must be positive, got {self.fps}")
+        if not (isinstance(self.fps, numbers.Real) and math.isfinite(self.fps) and self.fps > 0):
+            raise PGCDataError(f"motion '{self.name}': fps must be a finite positive number (frames per second), "
+                               f"got {self.fps!r}")
 
     @property
     def num_frames(self) -> int:

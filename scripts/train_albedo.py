@@ -29,14 +29,21 @@ DATA_VERSION = 2
 """Bumped when pgc.albedo.dataset changes what it renders (the cache key)."""
 
 
-def cached_data(kind: str, scenes: int, views: int, resolution: int, seed: int, spp: int, reporter):
+def cached_data(kind: str, scenes: int, views: int, resolution: int, seed: int, spp: int, cfg, reporter):
+    """The training data of these settings rendered by ``cfg``'s scene renderer (cached under .cache/, keyed by the
+    settings and the renderer's implementation, options and version)."""
     from pgc.albedo.dataset import AlbedoData, make_albedo_data
+    from pgc.pipeline.cache import content_key
+    from pgc.synth.render import scene_renderer
 
-    path = ROOT / ".cache" / f"albedo_v{DATA_VERSION}_{kind}_{scenes}x{views}_{resolution}px_{spp}spp_seed{seed}.npz"
+    renderer_key = content_key("albedo-data-renderer", cfg.role_key("scene_renderer"))[:12]
+    path = ROOT / ".cache" / (f"albedo_v{DATA_VERSION}_{kind}_{scenes}x{views}_{resolution}px_{spp}spp_seed{seed}_"
+                              f"{renderer_key}.npz")
     if path.is_file():
         with np.load(path) as z:
             return AlbedoData(z["images"], z["albedo"], z["mask"], z["garment"])
-    data = make_albedo_data(kind, scenes, views, resolution, seed, spp=spp, reporter=reporter)
+    data = make_albedo_data(kind, scenes, views, resolution, seed, spp=spp, reporter=reporter,
+                            renderer=scene_renderer(cfg))
     path.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(path, images=data.images, albedo=data.albedo, mask=data.mask, garment=data.garment)
     return data
@@ -55,12 +62,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--batch", type=int, default=8)
     p.add_argument("--crop", type=int, default=96)
     p.add_argument("--smoke", action="store_true", help="tiny data and few steps (tests)")
+    p.add_argument("--config", type=Path, help="run configuration TOML: its [scene_renderer] renders the data")
     args = p.parse_args(argv)
     if args.smoke:
         args.scenes, args.val_scenes, args.views, args.resolution, args.steps = 1, 1, 2, 48, 20
 
     import torch
 
+    from pgc.config import load
     from pgc.events import Reporter
     from pgc.progress import ProgressPrinter
     from pgc.registry import Registry
@@ -72,10 +81,11 @@ def main(argv: list[str] | None = None) -> int:
     registry = Registry()
     registry.plugin_manager.register(ProgressPrinter(), name="progress")
     reporter = Reporter(registry.hook)
+    cfg = load(args.config)
     start = time.perf_counter()
-    train_data = cached_data("tshirt", args.scenes, args.views, args.resolution, args.seed, args.spp, reporter)
+    train_data = cached_data("tshirt", args.scenes, args.views, args.resolution, args.seed, args.spp, cfg, reporter)
     val_data = cached_data("dress", args.val_scenes, args.views, args.resolution, args.seed + 1000, args.spp,
-                           reporter)
+                           cfg, reporter)
     settings = TrainSettings(steps=args.steps, batch=args.batch, crop=args.crop, seed=args.seed)
     data_seconds = time.perf_counter() - start
     model = train(train_data, settings, reporter)

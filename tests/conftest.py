@@ -94,6 +94,15 @@ def small_capture() -> Capture:
     return make_capture()
 
 
+@pytest.fixture(scope="session")
+def default_scene_renderer():
+    """The scene renderer of the default configuration (Mitsuba), as ``pgc synth`` without ``--config`` uses."""
+    from pgc.config import load
+    from pgc.synth.render import scene_renderer
+
+    return scene_renderer(load(require_available=False))
+
+
 FAKE_PLUGINS = {
     "fakeplug_ok": '''
 from pgc.registry import ImplementationSpec, hookimpl

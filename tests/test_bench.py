@@ -15,6 +15,7 @@ from pgc.bench.runner import run_bench
 from pgc.cli import main
 from pgc.errors import PGCConfigError, PGCDataError
 from pgc.registry import default_registry
+from pgc.roles.filter import Filter
 
 SMALL = """
 [filter]
@@ -165,11 +166,8 @@ def test_pgc_bench_tiny_end_to_end(tmp_path, capsys):
     assert len(rec.read_csv(out / "bench.csv")) == len(records)
 
 
-class BrokenFilter:
+class BrokenFilter(Filter):
     """A filter whose low-pass always raises (to check that a failing run is recorded, not fatal)."""
-
-    def __init__(self, options=None) -> None:
-        pass
 
     def lowpass(self, image, alpha, kernel_size):
         raise RuntimeError("broken on purpose")

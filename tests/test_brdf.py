@@ -128,6 +128,7 @@ def test_reciprocity(model: str) -> None:
     np.testing.assert_allclose(d_lv / L[:, 2], d_vl / V[:, 2], rtol=1e-12)
 
 
+@pytest.mark.agreement
 @pytest.mark.parametrize("model", MODELS)
 def test_numpy_torch_jax_agree(model: str) -> None:
     torch = pytest.importorskip("torch")

@@ -63,6 +63,7 @@ def test_separable_reference_equals_direct_sum(kernel_size):
     assert np.abs(lowpass_separable(image, alpha, kernel_size) - lowpass_direct(image, alpha, kernel_size)).max() < 1e-12
 
 
+@pytest.mark.agreement
 @pytest.mark.parametrize("kernel_size", [1, 5, 21, 71, 151])  # 151 > image: the kernel is clamped to the image
 def test_backend_matches_reference(filt, kernel_size):
     image, alpha = scene()
@@ -71,6 +72,7 @@ def test_backend_matches_reference(filt, kernel_size):
     assert np.abs(out - lowpass_separable(image, alpha, kernel_size)).max() < TOL
 
 
+@pytest.mark.agreement
 def test_backends_agree_with_each_other():
     reg = default_registry()
     impls = [reg.get("filter", n) for n in BACKENDS]

@@ -78,3 +78,46 @@ def test_the_asset_key_follows_the_asset_files_not_the_settings_or_timings_it_re
         changed = dict(manifest, **{field: value})
         (tmp_path / "manifest.json").write_text(json.dumps(changed))
         assert asset_key(tmp_path) != key, field
+
+
+def _scene_renderer_config(**options):
+    from pgc.config import resolve
+
+    return resolve({"scene_renderer": {"use": "mitsuba", "mitsuba": options}}, require_available=False)
+
+
+def test_the_scene_renderer_is_part_of_the_ground_truth_key(tmp_path):
+    from pgc.pipeline.evaluate import ground_truth_key
+
+    run, capture = tmp_path / "run", tmp_path / "capture"
+    (capture / "ground_truth").mkdir(parents=True)
+    run.mkdir()
+    for path in (run / "garment.npz", run / "body.npz", capture / "ground_truth" / "scene.json"):
+        path.write_text(path.name)
+
+    def key(**options):
+        return ground_truth_key(run, capture, ["cam_000"], _scene_renderer_config(**options))
+
+    assert key() == key(max_depth=8) == key()  # the default, written out or not: one key
+    assert key(max_depth=3) not in (key(), key(max_depth=4))
+    version = _scene_renderer_config().role_key("scene_renderer")["version"]
+    assert version is not None  # the providing distribution's version is part of it
+
+
+def test_the_demo_capture_is_regenerated_when_the_scene_renderer_changes(tmp_path, monkeypatch):
+    pytest.importorskip("mitsuba")
+    import pgc.synth.generate as generate_mod
+    from pgc.pipeline.demo import synthetic_capture
+
+    rendered = []
+
+    def generate(folder, preset, seed, reporter, renderer):
+        folder.mkdir(parents=True, exist_ok=True)
+        rendered.append(renderer.options.max_depth)
+
+    monkeypatch.setattr(generate_mod, "generate", generate)
+    folder = tmp_path / "capture"
+    assert synthetic_capture(folder, "tiny", 0, _scene_renderer_config()) is True
+    assert synthetic_capture(folder, "tiny", 0, _scene_renderer_config(max_depth=8)) is False  # same renderer
+    assert synthetic_capture(folder, "tiny", 0, _scene_renderer_config(max_depth=3)) is True
+    assert rendered == [8, 3]

@@ -4,6 +4,7 @@ dependencies, blocking, fallback lists, the pytest fixture."""
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 
@@ -48,7 +49,8 @@ def test_missing_dependency_is_unavailable_with_install_hint(fake_distribution):
 
 def test_factory_import_error_is_reported_on_create(fake_distribution):
     reg = Registry.discover()
-    with pytest.raises(PGCPluginError, match=r"filter 'tmp-badfactory': cannot import fakeplug_ok_impl_gone:X: "
+    with pytest.raises(PGCPluginError, match=r"filter 'tmp-badfactory' \(plugin 'tmpok', distribution "
+                                             r"tmp-pgc-plugins\): cannot import factory fakeplug_ok_impl_gone:X: "
                                              r"ModuleNotFoundError"):
         reg.create("filter", "tmp-badfactory")
 
@@ -114,3 +116,125 @@ def test_pgc_plugins_json_lists_every_state(fake_distribution, capsys):
     for role in ROLES:
         assert f"{role}:" in text
     assert "tmpbroken (tmp-pgc-plugins): plugin failed to load: ImportError" in text
+
+
+BAD_PLUGIN = '''
+from pgc.registry import ImplementationSpec, hookimpl
+from pgc.roles.filter import Filter
+
+
+class NotAFilter:
+    """Has the method, but not the role's interface."""
+
+    def lowpass(self, image, alpha, kernel_size):
+        return image
+
+
+class HalfFilter(Filter):
+    """Subclasses the role and leaves its abstract method unimplemented."""
+
+
+class Renamed(Filter):
+    def lowpass(self, image, alpha, kernel_size):
+        return image
+
+
+def spec(name, factory, options=None):
+    return ImplementationSpec(role="filter", name=name, factory=factory, description="", options=options)
+
+
+@hookimpl
+def pgc_register_implementations():
+    return [spec("bad-class", "badplug:NotAFilter"), spec("bad-abstract", "badplug:HalfFilter"),
+            spec("bad-import", "badplug_impl:Filter"), spec("bad-options", "badplug:Renamed", "badplug:NotAFilter")]
+'''
+BAD_REASONS = {
+    "bad-class": "factory badplug:NotAFilter does not subclass the role's interface pgc.roles.filter:Filter",
+    "bad-abstract": "factory badplug:HalfFilter leaves abstract method(s) lowpass of pgc.roles.filter:Filter "
+                    "unimplemented",
+    "bad-import": "cannot import factory badplug_impl:Filter: ImportError: badplug_impl needs libbaz.so.1",
+    "bad-options": "options model badplug:NotAFilter is not a subclass of pgc.options.Options",
+}
+
+
+@pytest.fixture
+def bad_plugins(tmp_path, monkeypatch):
+    """An installed distribution ``bad-pgc-plugins`` (entry point ``badplug``) registering filters whose factories do
+    not implement the role: not a subclass, an abstract method left, an import that fails, a bad options model."""
+    import importlib
+    import sys
+
+    site = tmp_path / "site"
+    site.mkdir()
+    (site / "badplug.py").write_text(BAD_PLUGIN)
+    (site / "badplug_impl.py").write_text("raise ImportError('badplug_impl needs libbaz.so.1')\n")
+    info = site / "bad_pgc_plugins-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: bad-pgc-plugins\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[pgc]\nbadplug = badplug\n")
+    monkeypatch.syspath_prepend(str(site))
+    importlib.invalidate_caches()
+    yield tmp_path
+    for module in ("badplug", "badplug_impl"):
+        sys.modules.pop(module, None)
+
+
+def _label(name: str) -> str:
+    return f"filter '{name}' (plugin 'badplug', distribution bad-pgc-plugins): "
+
+
+def test_check_implementation_names_what_is_wrong(bad_plugins):
+    from pgc.registry import check_implementation
+
+    reg = Registry.discover()
+    for name, reason in BAD_REASONS.items():
+        impl = reg.get("filter", name)
+        assert impl.available  # its dependencies are there: only importing the factory tells
+        with pytest.raises(PGCPluginError) as exc:
+            check_implementation(impl)
+        assert str(exc.value) == _label(name) + reason
+        assert impl.problem() == _label(name) + reason
+        with pytest.raises(PGCPluginError, match="^" + re.escape(_label(name))):
+            impl.create()
+    assert check_implementation(reg.get("filter", "box")).__name__ == "BoxBlurFilter"
+    assert reg.get("filter", "box").problem() is None
+
+
+def test_pgc_plugins_lists_bad_plugins_as_unavailable_with_the_reason(bad_plugins, capsys):
+    assert main(["plugins", "--role", "filter", "--json"]) == 0
+    rows = {r["name"]: r for r in json.loads(capsys.readouterr().out)}
+    for name, reason in BAD_REASONS.items():
+        assert rows[name]["available"] is False and rows[name]["reason"] == _label(name) + reason
+        assert rows[name]["provider"] == "bad-pgc-plugins" and rows[name]["plugin"] == "badplug"
+    assert rows["box"]["available"] is True and rows["box"]["reason"] is None
+    assert main(["plugins", "--role", "filter"]) == 0
+    text = capsys.readouterr().out
+    assert "-- bad-abstract" in text and "unavailable: " + _label("bad-abstract") + BAD_REASONS["bad-abstract"] in text
+    assert "ok box" in text
+
+
+@pytest.mark.parametrize("name", list(BAD_REASONS))
+def test_config_validate_refuses_a_chosen_bad_plugin_in_one_line(bad_plugins, capsys, name):
+    cfg = bad_plugins / "bad.toml"
+    cfg.write_text(f'[filter]\nuse = ["{name}", "box"]\n')
+    assert main(["config", "validate", str(cfg)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("pgc config: error: ") and err.count("\n") == 1
+    assert _label(name) + BAD_REASONS[name] in err
+    cfg.write_text('[filter]\nuse = "box"\n')  # registered but not chosen: no error
+    assert main(["config", "validate", str(cfg)]) == 0
+
+
+@pytest.mark.parametrize("argv", [["reconstruct", "{tmp}/no-capture", "--out", "{tmp}/asset"],
+                                  ["demo", "--preset", "tiny", "--out", "{tmp}/demo"],
+                                  ["synth", "{tmp}/capture", "--preset", "tiny"]],
+                         ids=["reconstruct", "demo", "synth"])
+def test_stage_commands_refuse_a_chosen_bad_plugin_before_any_work(bad_plugins, capsys, argv):
+    cfg = bad_plugins / "bad.toml"
+    cfg.write_text('[filter]\nuse = "bad-class"\n')
+    argv = [a.format(tmp=bad_plugins) for a in argv] + ["--config", str(cfg)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"pgc {argv[0]}: error: ") and "\n" not in err
+    assert _label("bad-class") + BAD_REASONS["bad-class"] in err
+    assert not any((bad_plugins / d).exists() for d in ("asset", "demo", "capture"))  # nothing was written

@@ -3,14 +3,20 @@ the fit stops on held-out convergence, not on the clock, and the same inputs giv
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from pgc.geometry.testscene import body_mesh, make_capture
 from pgc.roles.splat_renderer import FitSplatsSettings
-from pgc.splats.fit import adam_update, converged
+from pgc.splats.fit import PARAMETERS, FitBackend, FitView, adam_update, converged
+from pgc.splats.fitplan import focus_on_garment, heldout_split, initial_gaussians
 
 FAST = {"gaussians_per_pixel": 0.5, "holdout_every": 4, "log_every": 10, "init_color": "views"}
+ALONG_DB, FINAL_DB = 0.15, 0.25
+"""How far torch's and JAX's held-out PSNRs may be apart along a 60-step fit and after it (dB; the schedule
+test's docstring says where they come from)."""
 
 
 @pytest.fixture(scope="module")
@@ -41,35 +47,96 @@ def test_convergence_rule():
     assert not converged([20.0, 21.0, 21.0, 21.0], s.model_copy(update={"converge_db": 0.0}))  # 0: never
 
 
+def first_step(backend: FitBackend, capture, mesh, settings: dict, views: int = 3) -> list[tuple[float, dict]]:
+    """(loss, gradient per parameter) of one step from the fit's initial state on each of the first ``views``
+    training views, the rotations and scales made random (anisotropic Gaussians: every gradient is real). The
+    step runs with zero learning rates; Adam's first moment after step 1 is 0.1 x the gradient."""
+    s = FitSplatsSettings.model_validate(settings)
+    capture, faces = focus_on_garment(capture, mesh, s)
+    train, _ = heldout_split(len(capture.views), s.holdout_every)
+    initial = initial_gaussians(capture, mesh, s, np.random.default_rng(s.seed), faces,
+                                [capture.views[i] for i in train])
+    rng = np.random.default_rng(7)
+    initial = dataclasses.replace(initial, quats=rng.normal(size=initial.quats.shape),
+                                  log_scales=rng.normal(0.0, 0.4, initial.log_scales.shape))
+    zero = {n: 0.0 for n in PARAMETERS} | {"sh": np.zeros((initial.sh.shape[1], 1), np.float32)}
+    out = []
+    with backend.session():
+        for i in train[:views]:
+            backend.start(initial, mesh)
+            handle = backend.prepare(FitView.of(capture.views[i], s.mask_band))
+            backend.reserve([handle])
+            loss, _ = backend.step(handle, 1, zero, 1, s)
+            state = backend.state()
+            out.append((float(loss), {n: np.asarray(state[f"m_{n}"], np.float64) / 0.1 for n in PARAMETERS}))
+    return out
+
+
+@pytest.mark.agreement
+def test_torch_and_jax_take_the_same_step(scene):
+    """The agreement the two fits have by construction: on the same compiled kernel, from one state, the same
+    loss and the same gradient of every parameter (JAX's binding, losses and autodiff against torch's). Both
+    are float32 sums over the image in different orders, so they agree to float32 rounding, not bit for bit:
+    measured over 3 seeds x 3 views, on AVX2 and with torch, oneDNN and XLA held at their portable/SSE levels,
+    the loss to 1.1e-6 (relative) and each gradient to 8.2e-6 of its largest entry; the bounds are about 10x
+    that. (The XLA compositor has its own support rule: one Gaussian at a tile edge can differ by 0.3 % of the
+    largest gradient; tests/test_splat_jax.py compares it with its own bounds.) Over a whole fit the two
+    diverge further: see the next test."""
+    pytest.importorskip("torch")
+    pytest.importorskip("jax")
+    from pgc_jax.splat.fit import JaxFitBackend
+    from pgc_jax.splat.renderer import JaxSplatRenderer
+    from pgc_torch.splat.fit import TorchFitBackend
+    from pgc_torch.splat.renderer import TorchSplatRenderer
+
+    capture, mesh = scene
+    settings = dict(FAST, lambda_surface=0.1, lambda_opacity=0.01)
+    torch_steps = first_step(TorchFitBackend(TorchSplatRenderer({"threads": 1})), capture, mesh, settings)
+    jax_steps = first_step(JaxFitBackend(JaxSplatRenderer({"compositor": "fused", "threads": 1})), capture, mesh,
+                           settings)
+    for (loss_t, grads_t), (loss_j, grads_j) in zip(torch_steps, jax_steps, strict=True):
+        assert abs(loss_t - loss_j) <= 1e-5 * abs(loss_t)
+        for name in PARAMETERS:
+            scale = np.abs(grads_t[name]).max()
+            assert scale > 0 and np.abs(grads_t[name] - grads_j[name]).max() <= 1e-4 * scale, name
+
+
+@pytest.mark.agreement
 @pytest.mark.slow
 def test_torch_and_jax_follow_the_same_schedule_and_record_the_same_figures(scene):
+    """A whole fit on each backend: the same schedule, figures and held-out views, and held-out PSNRs that agree.
+
+    At the paper's adam_eps (1e-15) Adam turns the rounding noise of zero gradients into full steps, so two
+    libraries' fits drift apart as far as one library's fit does from a start moved by 1 ulp (measured over
+    8 seeds and 3 instruction-set settings: up to 0.18 dB along this fit, 0.48 dB after selection; the table
+    is in docs/robustness.md). The test runs at adam_eps 1e-8, where that amplification is about 100x weaker:
+    measured over 5 seeds on AVX2 and 5 with torch, oneDNN and XLA held at their portable/SSE levels, on the
+    shared kernel and on the XLA compositor, at most 0.045 dB along the fit and 0.079 dB for the full and the
+    selected model. The bounds (ALONG_DB, FINAL_DB) are about 3x those."""
     pytest.importorskip("torch")
     pytest.importorskip("jax")
     from pgc_jax.splat.renderer import JaxSplatRenderer
     from pgc_torch.splat.renderer import TorchSplatRenderer
 
     capture, mesh = scene
-    settings = dict(FAST, iterations=60, converge_every=20, converge_db=0.0)
+    settings = dict(FAST, iterations=60, converge_every=20, converge_db=0.0, adam_eps=1e-8)
     fits = {"torch": TorchSplatRenderer({"threads": 1}).fit(capture, mesh, settings),
             "jax": JaxSplatRenderer({"compositor": "xla", "tile_size": 8, "chunk_size": 16}).fit(capture, mesh, settings),
             "jax-fused": JaxSplatRenderer({"compositor": "fused", "threads": 1}).fit(capture, mesh, settings)}
-    t, j = fits["torch"], fits["jax"]
-    assert set(t.figures) == set(j.figures)
-    assert t.figures["iterations"] == j.figures["iterations"] == 60
-    assert t.figures["stopped"] == j.figures["stopped"] == "iterations"
-    assert t.figures["initial_gaussians"] == j.figures["initial_gaussians"]
-    assert [p["iteration"] for p in t.figures["time_to_psnr"]] == [p["iteration"] for p in j.figures["time_to_psnr"]]
-    assert t.heldout_views == j.heldout_views and t.heldout_views
-    assert abs(t.figures["psnr_heldout"] - j.figures["psnr_heldout"]) < 0.5
-    assert abs(t.figures["psnr_heldout_full"] - j.figures["psnr_heldout_full"]) < 0.5
-    # the JAX fit on the compiled kernel: the torch fit's kernel, JAX's binding, losses and Adam
-    # (the same kernel: the held-out PSNR along the fit agrees to 0.1 dB; after pruning and selection, discrete
-    # choices on this 40 px scene, to 0.5 dB as for the traced compositor)
-    f = fits["jax-fused"]
-    assert set(f.figures) == set(t.figures) and f.figures["iterations"] == 60
-    for a, b in zip(t.figures["time_to_psnr"], f.figures["time_to_psnr"], strict=True):
-        assert abs(a["psnr_heldout"] - b["psnr_heldout"]) < 0.1
-    assert abs(t.figures["psnr_heldout"] - f.figures["psnr_heldout"]) < 0.5
+    t = fits["torch"]
+    for name in ("jax", "jax-fused"):
+        j = fits[name]
+        assert set(j.figures) == set(t.figures), name
+        assert t.figures["iterations"] == j.figures["iterations"] == 60
+        assert t.figures["stopped"] == j.figures["stopped"] == "iterations"
+        assert t.figures["initial_gaussians"] == j.figures["initial_gaussians"]
+        assert t.heldout_views == j.heldout_views and t.heldout_views
+        curve_t, curve_j = t.figures["time_to_psnr"], j.figures["time_to_psnr"]
+        assert [p["iteration"] for p in curve_t] == [p["iteration"] for p in curve_j] == [20, 40, 60]
+        for a, b in zip(curve_t, curve_j, strict=True):
+            assert abs(a["psnr_heldout"] - b["psnr_heldout"]) < ALONG_DB, (name, a, b)
+        for key in ("psnr_heldout_full", "psnr_heldout"):
+            assert abs(t.figures[key] - j.figures[key]) < FINAL_DB, (name, key, t.figures[key], j.figures[key])
 
 
 @pytest.mark.slow
@@ -195,6 +262,7 @@ def test_surface_and_opacity_terms_act_in_both_backends(scene):
         assert opacity["faded"] < 0.8 * opacity["free"], (type(renderer).__name__, opacity)
 
 
+@pytest.mark.agreement
 def test_torch_in_place_adam_gives_the_same_bits_as_the_shared_update():
     torch = pytest.importorskip("torch")
     from pgc_torch.splat.fit import adam_update_in_place

@@ -70,6 +70,7 @@ def _weights(h: int, w: int, seed: int, depth: bool = True):
     return wc, wa, wd if depth else np.zeros((h, w))
 
 
+@pytest.mark.agreement
 @pytest.mark.parametrize(("seed", "degree"), [(0, None), (1, None), (2, 0), (3, 1), (4, 2)])
 def test_images_match_reference(seed, degree):
     world, cam = _scene(150, seed), _camera()
@@ -146,6 +147,7 @@ def test_float64_gradcheck_of_all_five_inputs():
                                     fast_mode=True)
 
 
+@pytest.mark.agreement
 @pytest.mark.parametrize("seed", [0, 1])
 def test_fused_cpp_and_torch_agree(seed):
     """Images (float32) and gradients of every input (float32 and float64) of the three paths."""

@@ -199,6 +199,7 @@ def test_gradients_match_float64_finite_differences_for_every_parameter(grads64)
         assert np.all(err <= 1e-3 * np.maximum(np.abs(fd), 1e-2 * np.abs(g).max())), (name, g[idx], fd)
 
 
+@pytest.mark.agreement
 def test_float32_gradients_match_float64_to_1e_3(grads32, grads64):
     for name, b in grads64[0].items():
         a = grads32[0][name]
@@ -206,6 +207,7 @@ def test_float32_gradients_match_float64_to_1e_3(grads32, grads64):
         assert np.all(np.abs(a - b) <= 1e-3 * np.maximum(np.abs(b), 1e-2 * np.abs(b).max())), name
 
 
+@pytest.mark.agreement
 def test_images_and_gradients_match_torch(grads32, compositor):
     """The same loss through the torch backend (binding + rasteriser) gives the same value and gradients."""
     torch = pytest.importorskip("torch")

@@ -97,6 +97,7 @@ def _weighted_render(params, cam, bg, weights, compositor, threads=2):
     return (color * wc).sum() + (alpha * wa).sum() + (depth * wd).sum()
 
 
+@pytest.mark.agreement
 @pytest.mark.parametrize("seed", [0, 1])
 def test_float32_gradients_match_float64_and_both_compositors(seed):
     world, cam = _scene(120, seed), _camera()

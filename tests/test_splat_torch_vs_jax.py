@@ -18,6 +18,7 @@ def _renderers():
     return impls["torch"].create(), impls["jax"].create()
 
 
+@pytest.mark.agreement
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_torch_and_jax_images_agree_with_each_other_and_the_reference(seed):
     rng = np.random.default_rng(seed)

@@ -85,13 +85,14 @@ def test_knit_scene_keys_expand_and_leave_other_scenes_unchanged(tmp_path):
     from pgc.sweep.work import scene_key
 
     text = GOOD + '[scenes.k]\npreset = "knit"\ndetail = ["relief", "seams"]\nfit = "resting"\nlooseness = [0.012, 0.03]\n'
-    scenes = load_sweep(_write(tmp_path, text)).scenes
+    sweep = load_sweep(_write(tmp_path, text))
+    scenes, cfg = sweep.scenes, sweep.configurations[0].cfg
     assert [s.name for s in scenes] == ["a", "k-relief-looseness0.012", "k-relief-looseness0.03",
                                         "k-seams-looseness0.012", "k-seams-looseness0.03"]
     plain = {"preset": "tiny", "garment": None, "fabric": None, "seed": 0, "framing": None}
     assert scenes[0].synth == plain  # no new keys: a sweep without them keeps its scene keys and captures
     assert scenes[2].synth == plain | {"preset": "knit", "detail": "relief", "fit": "resting", "looseness": 0.03}
-    assert len({scene_key(s) for s in scenes}) == 5
+    assert len({scene_key(s, cfg) for s in scenes}) == 5
 
 
 def test_make_capture_passes_the_scene_spec_as_pgc_synth_does(tmp_path, monkeypatch):
@@ -103,8 +104,10 @@ def test_make_capture_passes_the_scene_spec_as_pgc_synth_does(tmp_path, monkeypa
     monkeypatch.setattr(generate_mod, "generate", lambda folder, preset, **kw: calls.append((preset, kw)))
     spec = {"preset": "knit", "garment": None, "fabric": "fleece", "seed": 2, "framing": "body", "detail": "seams",
             "fit": "loose", "looseness": 0.03}
-    make_capture(spec, str(tmp_path / "captures" / "k-abc"), str(tmp_path))
-    make_capture(spec | {"framing": None, "detail": None}, str(tmp_path / "captures" / "k-def"), str(tmp_path))
+    make_capture(spec, str(tmp_path / "captures" / "k-abc"), {}, "(test)", str(tmp_path))
+    make_capture(spec | {"framing": None, "detail": None}, str(tmp_path / "captures" / "k-def"), {}, "(test)",
+                 str(tmp_path))
+    assert all(kw.pop("renderer").role == "scene_renderer" for _, kw in calls)  # the configuration's
     # `pgc synth OUT --preset knit --fabric fleece --seed 2 --framing body --detail seams --fit loose --looseness 0.03`
     assert calls[0] == (get_preset("knit", framing="body"), {"garment": None, "fabric": "fleece", "seed": 2,
                                                             "looseness": 0.03, "detail": "seams", "fit": "loose"})

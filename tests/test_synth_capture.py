@@ -16,11 +16,11 @@ pytest.importorskip("mitsuba")
 
 
 @pytest.fixture(scope="module")
-def tiny(tmp_path_factory):
+def tiny(tmp_path_factory, default_scene_renderer):
     from pgc.synth.generate import generate
 
     out = tmp_path_factory.mktemp("synth") / "tiny"
-    generate(out, "tiny", garment="tshirt", fabric="cotton", seed=1)
+    generate(out, "tiny", garment="tshirt", fabric="cotton", seed=1, renderer=default_scene_renderer)
     return out
 
 
@@ -170,11 +170,11 @@ def test_depth_and_albedo_layers(capture_and_oracle):
                                    atol=1e-6)
 
 
-def test_lambertian_patch_matches_the_analytic_value():
+def test_lambertian_patch_matches_the_analytic_value(default_scene_renderer):
     """A flat Lambertian patch (albedo rho) under a constant environment of radiance L, unoccluded over its
     upper hemisphere, has radiance rho L in every direction. Both the shared BSDF (material_to_bsdf,
     'lambertian' with a texture) and Mitsuba's own 'diffuse' (the body) must give it."""
-    from pgc.synth.render import SceneGeometry, build_scene, render_color
+    from pgc.synth.render import SceneGeometry
     from pgc.synth.rig import look_at
     from pgc.types import Light
 
@@ -187,18 +187,19 @@ def test_lambertian_patch_matches_the_analytic_value():
     texture = np.broadcast_to(rho.astype(np.float32), (8, 8, 3)).copy()
     body = quad + [3.0, 0, 0]  # a second patch, away from the first: the body material (Mitsuba 'diffuse')
     geometry = SceneGeometry(body, faces, patch, Material("lambertian", {}, texture), skin_albedo=tuple(rho))
-    scene, _ = build_scene(geometry, light)
+    scene, _ = default_scene_renderer.build_scene(geometry, light)
     for target in ([0.0, 0, 0], [3.0, 0, 0]):
         for elevation in (80.0, 25.0):  # near normal and towards grazing
             e = np.deg2rad(elevation)
             R, t = look_at(np.array(target) + [0, 2 * np.sin(e), 2 * np.cos(e)], np.array(target))
             K = np.array([[200.0, 0, 16], [0, 200.0, 16], [0, 0, 1]])
-            color, alpha = render_color(scene, Camera(K, R, t, 32, 32), spp=64, seed=0)
+            color, alpha = default_scene_renderer.render_color(scene, Camera(K, R, t, 32, 32), spp=64, seed=0)
             assert np.all(alpha == 1)
             np.testing.assert_allclose(color.reshape(-1, 3).mean(axis=0), rho * light.radiance, rtol=0.01)
 
 
-def test_render_frames_reproduces_the_capture_and_follows_the_geometry(tiny, capture_and_oracle):
+def test_render_frames_reproduces_the_capture_and_follows_the_geometry(tiny, capture_and_oracle,
+                                                                       default_scene_renderer):
     from pgc.synth.frames import render_frames
     from pgc.synth.ground_truth import read_ground_truth
 
@@ -208,7 +209,7 @@ def test_render_frames_reproduces_the_capture_and_follows_the_geometry(tiny, cap
     shift = np.array([0.05, 0.0, 0.0])
     g = np.stack([gt.garment.vertices, gt.garment.vertices + shift])
     b = np.stack([gt.body.vertices, gt.body.vertices + shift])
-    frames = render_frames(tiny, g, b, cams, spp=16)
+    frames = render_frames(tiny, g, b, cams, spp=16, renderer=default_scene_renderer)
     assert len(frames) == 2 and frames[0]["color"].shape == (1, 64, 64, 3)
     np.testing.assert_allclose(frames[0]["alpha"][0], capture.views[0].mask, atol=0.5 / 255)  # 8-bit file
     fg = capture.views[0].mask == 1
@@ -226,20 +227,21 @@ def test_render_frames_reproduces_the_capture_and_follows_the_geometry(tiny, cap
     np.testing.assert_allclose(moved, expected, atol=0.5)
 
 
-def test_render_frames_rejects_bad_input(tiny, capture_and_oracle):
+def test_render_frames_rejects_bad_input(tiny, capture_and_oracle, default_scene_renderer):
     from pgc.synth.frames import render_frames
     from pgc.synth.ground_truth import read_ground_truth
 
     capture, _, _ = capture_and_oracle
     gt = read_ground_truth(tiny)
     with pytest.raises(PGCDataError, match="garment_vertices must have shape"):
-        render_frames(gt, np.zeros((1, 5, 3)), gt.body.vertices[None], capture.cameras[:1])
+        render_frames(gt, np.zeros((1, 5, 3)), gt.body.vertices[None], capture.cameras[:1],
+                      renderer=default_scene_renderer)
     with pytest.raises(PGCDataError, match="no synthetic ground truth"):
         read_ground_truth(Path(tiny) / "images")
 
 
 @pytest.mark.slow
-def test_same_seed_gives_byte_identical_output_and_the_cli_works(tmp_path):
+def test_same_seed_gives_byte_identical_output_and_the_cli_works(tmp_path, default_scene_renderer):
     from pgc.cli import main
     from pgc.synth.generate import generate, get_preset
 
@@ -247,7 +249,7 @@ def test_same_seed_gives_byte_identical_output_and_the_cli_works(tmp_path):
             "--detail", "seams", "--fit", "resting", "--looseness", "0.015"]
     assert main(["synth", str(tmp_path / "a"), *args]) == 0
     generate(tmp_path / "b", get_preset("tiny", views=2, resolution=32), fabric="fleece", seed=7, detail="seams",
-             fit="resting", looseness=0.015)
+             fit="resting", looseness=0.015, renderer=default_scene_renderer)
     files_a = sorted(p.relative_to(tmp_path / "a") for p in (tmp_path / "a").rglob("*") if p.is_file())
     files_b = sorted(p.relative_to(tmp_path / "b") for p in (tmp_path / "b").rglob("*") if p.is_file())
     assert files_a == files_b and len(files_a) > 20
@@ -300,7 +302,7 @@ def test_stored_body_model_and_motions_reproduce_the_body(tiny):
     np.testing.assert_allclose(body.pose(rotations), fresh.vertices, atol=1e-5)
 
 
-def test_render_frames_relights_with_an_environment_map(tiny, capture_and_oracle):
+def test_render_frames_relights_with_an_environment_map(tiny, capture_and_oracle, default_scene_renderer):
     from pgc.synth.frames import render_frames
     from pgc.synth.ground_truth import read_ground_truth
     from pgc.synth.rig import relight_envmap
@@ -309,10 +311,81 @@ def test_render_frames_relights_with_an_environment_map(tiny, capture_and_oracle
     capture, _, _ = capture_and_oracle
     gt = read_ground_truth(tiny)
     light = Light(radiance=np.ones(3), envmap=relight_envmap(16, "studio"))
-    frame = render_frames(gt, gt.garment.vertices, gt.body.vertices, capture.cameras[:1], light=light, spp=16)[0]
+    frame = render_frames(gt, gt.garment.vertices, gt.body.vertices, capture.cameras[:1], light=light, spp=16,
+                          renderer=default_scene_renderer)[0]
     color, alpha = frame["color"][0], frame["alpha"][0]
     assert np.all(np.isfinite(color)) and color.min() >= 0
     np.testing.assert_allclose(alpha, capture.views[0].mask, atol=1 / 255)
     # the person is lit differently from the capture's constant light
     person = alpha == 1
     assert np.abs(color[person].mean(axis=0) - capture.views[0].image[person].mean(axis=0)).max() > 0.02
+
+
+RECORDING_PLUGIN = '''
+from pgc.registry import ImplementationSpec, hookimpl
+from pgc_mitsuba.synth_scene import MitsubaSceneRenderer
+
+CALLS = []
+
+
+class RecordingRenderer(MitsubaSceneRenderer):
+    """The Mitsuba scene renderer, recording every call with its option max_depth."""
+
+    def build_scene(self, geometry, light):
+        CALLS.append(("build_scene", self.options.max_depth))
+        return super().build_scene(geometry, light)
+
+    def render_color(self, scene, camera, spp, seed, sampler="independent"):
+        CALLS.append(("render_color", self.options.max_depth))
+        return super().render_color(scene, camera, spp, seed, sampler)
+
+    def ground_truth_layers(self, scene, labels, geometry, camera, samples=4):
+        CALLS.append(("ground_truth_layers", self.options.max_depth))
+        return super().ground_truth_layers(scene, labels, geometry, camera, samples)
+
+
+@hookimpl
+def pgc_register_implementations():
+    return [ImplementationSpec(role="scene_renderer", name="recording", factory="recplug:RecordingRenderer",
+                               description="records its calls", options="pgc_mitsuba.specs_scene:MitsubaSceneOptions",
+                               requires=("mitsuba",))]
+'''
+
+
+@pytest.fixture
+def recording_renderer(tmp_path, monkeypatch):
+    """A scene renderer 'recording' installed as a plugin (distribution rec-pgc-plugin); returns its module."""
+    import importlib
+    import sys
+
+    site = tmp_path / "site"
+    site.mkdir()
+    (site / "recplug.py").write_text(RECORDING_PLUGIN)
+    info = site / "rec_pgc_plugin-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: rec-pgc-plugin\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[pgc]\nrecplug = recplug\n")
+    monkeypatch.syspath_prepend(str(site))
+    importlib.invalidate_caches()
+    yield importlib.import_module("recplug")
+    sys.modules.pop("recplug", None)
+
+
+def test_the_configured_scene_renderer_renders_with_its_options(tiny, recording_renderer, tmp_path):
+    from pgc.cli import main
+    from pgc.synth.ground_truth import read_ground_truth
+
+    gt = read_ground_truth(tiny)
+    np.savez(tmp_path / "g.npz", vertices=gt.garment.vertices[None])
+    np.savez(tmp_path / "b.npz", vertices=gt.body.vertices[None])
+    config = tmp_path / "run.toml"
+    config.write_text('[scene_renderer]\nuse = "recording"\n[scene_renderer.recording]\nmax_depth = 3\n')
+    argv = ["synth", "render-frames", str(tiny), str(tmp_path / "g.npz"), str(tmp_path / "b.npz"),
+            str(tmp_path / "frames"), "--spp", "4"]
+    assert main([*argv, "--config", str(config)]) == 0
+    calls = recording_renderer.CALLS
+    assert {name for name, _ in calls} == {"build_scene", "render_color", "ground_truth_layers"}
+    assert {depth for _, depth in calls} == {3}  # built with the configured options
+    calls.clear()
+    assert main(argv) == 0  # the defaults: Mitsuba's own renderer, not the recording one
+    assert calls == []

@@ -145,12 +145,12 @@ def _pixel_hits(surface: Mesh, camera: Camera) -> tuple[np.ndarray, np.ndarray, 
     return valid, depth, np.array(si.prim_index, np.int64), o + t[:, None] * d
 
 
-def test_detail_appears_in_the_ground_truth_layers(body, tee, relief):
+def test_detail_appears_in_the_ground_truth_layers(body, tee, relief, default_scene_renderer):
     """Seen head-on, the rendered depth of the detailed garment is the base garment's depth minus the
     relief height at the same place (flat-patch formula h (d . z_cam) / (-d . n)), and the segmentation
     counts the relief as garment."""
     from pgc.synth.generate import framing_sphere
-    from pgc.synth.render import SceneGeometry, build_scene, ground_truth_layers
+    from pgc.synth.render import SceneGeometry
     from pgc.synth.rig import capture_light, dome_cameras
     from pgc.types import Material
 
@@ -162,8 +162,8 @@ def test_detail_appears_in_the_ground_truth_layers(body, tee, relief):
     layers = {}
     for name, det in (("base", None), ("detail", surface)):
         geometry = SceneGeometry(body.vertices, body.faces, tee, material, detail=det)
-        scene, labels = build_scene(geometry, light)
-        layers[name] = ground_truth_layers(scene, labels, geometry, cam, samples=1)
+        scene, labels = default_scene_renderer.build_scene(geometry, light)
+        layers[name] = default_scene_renderer.ground_truth_layers(scene, labels, geometry, cam, samples=1)
     seg_b, seg_d = layers["base"]["segmentation"], layers["detail"]["segmentation"]
     assert (seg_d == 2).sum() >= (seg_b == 2).sum() > 500
     # expected depth change: the relief's (piecewise linear) height where the undisplaced fine surface is hit
@@ -206,12 +206,12 @@ def test_resting_garment_hangs_from_the_shoulders(body, kind):
 
 
 @pytest.fixture(scope="module")
-def capture(tmp_path_factory):
+def capture(tmp_path_factory, default_scene_renderer):
     from pgc.synth.generate import generate, get_preset
 
     out = tmp_path_factory.mktemp("synth_detail") / "tiny"
     generate(out, get_preset("tiny", views=2, resolution=48), fabric="rib-knit", detail="relief", fit="resting",
-             looseness=0.012, seed=2)
+             looseness=0.012, seed=2, renderer=default_scene_renderer)
     return out
 
 
@@ -232,7 +232,7 @@ def test_the_capture_stores_the_detail_and_its_gap(capture):
     assert gt.fibres is not None and gt.fibres.offset is not None and gt.fibres.offset.max() > 0.001
 
 
-def test_render_frames_carry_the_detail_along_a_rigid_motion(capture):
+def test_render_frames_carry_the_detail_along_a_rigid_motion(capture, default_scene_renderer):
     """Moving body, garment and camera by one rigid motion renders the same frame (the constant light does
     not turn); the detail rides along, so its silhouette stays larger than the bare garment's."""
     from pgc.io.capture import read_capture
@@ -244,11 +244,11 @@ def test_render_frames_carry_the_detail_along_a_rigid_motion(capture):
     Q, s = axis_angle_to_matrix(np.array([0.2, 0.9, -0.1])), np.array([0.3, 0.1, -0.5])
     moved = Camera(cam.K, cam.R @ Q.T, cam.t - cam.R @ Q.T @ s, cam.width, cam.height, "moved")
     gv, bv = gt.garment.vertices, gt.body.vertices
-    a = render_frames(gt, gv, bv, [cam], spp=4)[0]
-    b = render_frames(gt, gv @ Q.T + s, bv @ Q.T + s, [moved], spp=4)[0]
+    a = render_frames(gt, gv, bv, [cam], spp=4, renderer=default_scene_renderer)[0]
+    b = render_frames(gt, gv @ Q.T + s, bv @ Q.T + s, [moved], spp=4, renderer=default_scene_renderer)[0]
     assert np.mean(a["segmentation"] == b["segmentation"]) > 0.995
     np.testing.assert_allclose(a["garment_mask"], b["garment_mask"], atol=0.26)  # a sub-sample at most
     assert abs(a["color"].mean() - b["color"].mean()) < 0.01
     gt.detail = None
-    bare = render_frames(gt, gv @ Q.T + s, bv @ Q.T + s, [moved], spp=4)[0]
+    bare = render_frames(gt, gv @ Q.T + s, bv @ Q.T + s, [moved], spp=4, renderer=default_scene_renderer)[0]
     assert b["garment_mask"].sum() > bare["garment_mask"].sum() + 5  # pixels of relief

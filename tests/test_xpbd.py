@@ -132,6 +132,7 @@ def test_garment_draped_on_static_body_comes_to_rest(backend):
     assert abs(gap.min() - 0.004) < 5e-4  # the contact sits at the 0.4 cm offset
 
 
+@pytest.mark.agreement
 @pytest.mark.parametrize("solver", ["jacobi", "coloured"])
 def test_torch_and_jax_agree(solver):
     """Same inputs, same trajectories: float64 to 1e-9 m, float32 to 1e-4 m over 5 frames of draping."""

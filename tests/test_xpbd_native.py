@@ -38,6 +38,7 @@ def drape(cloth: Mesh, motion: BodyMotion, sim_native: bool, **options) -> tuple
     return out.vertices, out.figures["residual_rms"]
 
 
+@pytest.mark.agreement
 @pytest.mark.parametrize("solver", ["coloured", "jacobi"])
 @pytest.mark.parametrize("iterations", [1, 4])
 def test_agrees_with_jax_in_float64_with_the_same_residuals(solver, iterations):
@@ -64,6 +65,7 @@ def test_self_collision_agrees_with_jax_and_acts():
     assert np.abs(off - a).max() > 1e-3  # the layers were pushed apart
 
 
+@pytest.mark.agreement
 def test_float32_agrees_with_jax():
     cloth, motion = grid_cloth(8, 0.5, 0.27), moving_motion(SPHERE, 3, velocity=(0.3, 0.0, 0.0))
     opts = {"substeps": 4, "iterations": 3, "settle_frames": 2, "dtype": "float32"}

@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from pgc.filtering.kernel import check_filter_inputs, check_kernel_size, gaussian_kernel_1d, renormalise
+from pgc.filtering.kernel import check_kernel_size, gaussian_kernel_1d, renormalise
 from pgc.roles.filter import Filter
 from pgc_jax.specs_filter import JaxFilterOptions
 
@@ -48,6 +48,5 @@ class JaxFilter(Filter):
     Options = JaxFilterOptions
 
     def lowpass(self, image: np.ndarray, alpha: np.ndarray, kernel_size: int) -> np.ndarray:
-        image, alpha = check_filter_inputs(image, alpha)
         out = alpha_lowpass(jnp.asarray(image), jnp.asarray(alpha), kernel_size)
         return np.asarray(out, dtype=np.float32)

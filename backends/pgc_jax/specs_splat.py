@@ -6,7 +6,7 @@ from typing import Literal
 
 from pydantic import Field
 
-from pgc.options import Options
+from pgc.options import MAX_THREADS, Options, count
 from pgc.registry import ImplementationSpec
 
 
@@ -16,8 +16,8 @@ class JaxSplatOptions(Options):
                             "by XLA; runs wherever JAX does), 'fused' (the project's compiled CPU kernel called "
                             "from the traced program, with its analytic backward as the VJP), 'auto' (fused on a "
                             "CPU backend when the kernel builds, else xla)")
-    threads: int = Field(0, ge=0, description="fused kernel threads; 0 = the cores allotted to the process "
-                                              "(OMP_NUM_THREADS, else all usable cores)")
+    threads: int = count(0, 0, MAX_THREADS, "fused kernel threads; 0 = the cores allotted to the process "
+                                            "(OMP_NUM_THREADS, else all usable cores)")
     tile_size: int = Field(8, ge=4, le=64, description=(
         "xla compositor: tile edge in pixels; a tile's pixels are one block (8 was fastest in bench_splat_jax.py)"))
     chunk_size: int = Field(16, ge=4, le=1024, description=(

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from pgc.checks import require_finite
 from pgc.errors import PGCDataError
 from pgc.types import Light, Material, Mesh
 from pgc_mitsuba.bsdfs import material_to_bsdf
@@ -20,18 +21,21 @@ from pgc_mitsuba.runtime import mesh_to_mitsuba, mitsuba
 
 
 def emitter_dict(light: Light) -> dict[str, Any]:
-    """The Mitsuba emitter of ``light``."""
+    """The Mitsuba emitter of ``light``; a non-finite or negative radiance, or an environment map of the wrong
+    shape or with NaN/Inf, is a :class:`PGCDataError` naming that problem."""
     mi = mitsuba()
-    radiance = np.asarray(light.radiance, dtype=np.float64)
-    if not np.all(np.isfinite(radiance)) or np.any(radiance < 0):
-        raise PGCDataError(f"light.radiance must be finite and non-negative, got {radiance.tolist()}")
+    radiance = require_finite("mitsuba", "light.radiance", np.asarray(light.radiance, dtype=np.float64))
+    if np.any(radiance < 0):
+        raise PGCDataError(f"mitsuba: light.radiance must be non-negative, got {radiance.tolist()}")
     if light.envmap is None:
         return {"type": "constant", "radiance": {"type": "rgb", "value": radiance.tolist()}}
     env = np.asarray(light.envmap, dtype=np.float32)
-    if env.ndim != 3 or env.shape[2] != 3 or env.shape[1] != 2 * env.shape[0] or not np.all(np.isfinite(env)):
-        raise PGCDataError(f"light.envmap must be a finite (H, 2H, 3) lat-long map, got shape {env.shape}")
+    if env.ndim != 3 or env.shape[2] != 3 or env.shape[1] != 2 * env.shape[0]:
+        raise PGCDataError(f"mitsuba: light.envmap must be an (H, 2H, 3) lat-long map, got shape {env.shape}")
+    require_finite("mitsuba", "light.envmap", env)
+    rotation = float(require_finite("mitsuba", "light.rotation_deg", float(light.rotation_deg)))
     return {"type": "envmap", "bitmap": mi.Bitmap(np.ascontiguousarray(env * radiance.astype(np.float32))),
-            "to_world": mi.ScalarTransform4f().rotate([0.0, 1.0, 0.0], float(light.rotation_deg))}
+            "to_world": mi.ScalarTransform4f().rotate([0.0, 1.0, 0.0], rotation)}
 
 
 def scene_dict(mesh: Mesh, material: Material, light: Light, integrator: dict[str, Any],

@@ -2,25 +2,25 @@
 
 from pydantic import Field
 
-from pgc.options import Options
+from pgc.options import Options, count, seed_field
 from pgc.registry import ImplementationSpec
 
 
 class MitsubaPBROptions(Options):
-    spp: int = Field(64, ge=1)
+    spp: int = count(64, 1, 65536)
     """Samples per pixel (screen space) or per texel (texture space) when rendering."""
-    max_depth: int = Field(4, ge=2)
+    max_depth: int = count(4, 2, 64)
     """Maximum path length (Mitsuba convention: 2 = direct light only; 4 = up to two indirect bounces)."""
     smooth_normals: bool = True
     """Shade with interpolated vertex normals (False: flat faces)."""
     ray_offset: float = Field(1e-4, gt=0.0)
     """Texture space: ray origins lie this far from the texel toward the camera centre, as a fraction of
     the mesh's bounding-box diagonal."""
-    max_samples_per_pass: int = Field(4_000_000, ge=1024)
+    max_samples_per_pass: int = count(4_000_000, 1024, 1 << 30)
     """Rays traced per Mitsuba render call; larger renders are split into passes (bounds memory)."""
     occluder_albedo: float = Field(0.5, ge=0.0, le=1.0)
     """Albedo of non-garment faces of a labelled mesh (the body), which shadow and inter-reflect."""
-    seed: int = 0
+    seed: int = seed_field()
 
 
 SPECS = [

@@ -1,13 +1,11 @@
 """Spec and options of the synthetic-scene renderer (role ``scene_renderer``, name ``mitsuba``). Light module."""
 
-from pydantic import Field
-
-from pgc.options import Options
+from pgc.options import Options, count
 from pgc.registry import ImplementationSpec
 
 
 class MitsubaSceneOptions(Options):
-    max_depth: int = Field(8, ge=2)
+    max_depth: int = count(8, 2, 64)
     """Maximum path length of the ``path`` integrator (Mitsuba convention: 2 = direct light only)."""
 
 

@@ -6,6 +6,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field
 
+from pgc.options import MAX_THREADS
 from pgc.registry import ImplementationSpec
 from pgc.sim.options import XPBDOptions
 
@@ -13,7 +14,7 @@ from pgc.sim.options import XPBDOptions
 class NativeXPBDOptions(XPBDOptions):
     """:class:`~pgc.sim.options.XPBDOptions` plus the kernel's thread count (results do not depend on it)."""
 
-    threads: Literal["auto"] | Annotated[int, Field(ge=0)] = Field(
+    threads: Literal["auto"] | Annotated[int, Field(ge=0, le=MAX_THREADS)] = Field(
         "auto", description="OpenMP threads of the frame kernel; 0 = all allotted cores; 'auto' = whichever of all "
         "allotted cores and 1 thread the frames themselves time as faster, re-timed every 20 frames (a frame has "
         "~20 barriers per iteration: on 2 idle cores 2 threads are 1.6x faster, with one other busy process 3x "

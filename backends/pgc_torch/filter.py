@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from pgc.filtering.kernel import check_filter_inputs, check_kernel_size, gaussian_kernel_1d, renormalise
+from pgc.filtering.kernel import check_kernel_size, gaussian_kernel_1d, renormalise
 from pgc.roles.filter import Filter
 from pgc_torch.specs_filter import TorchFilterOptions
 
@@ -40,7 +40,6 @@ class TorchFilter(Filter):
     Options = TorchFilterOptions
 
     def lowpass(self, image: np.ndarray, alpha: np.ndarray, kernel_size: int) -> np.ndarray:
-        image, alpha = check_filter_inputs(image, alpha)
         device = torch.device(self.options.device)
         with torch.no_grad():
             out = alpha_lowpass(torch.from_numpy(image).to(device), torch.from_numpy(alpha).to(device), kernel_size)

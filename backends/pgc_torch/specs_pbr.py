@@ -4,7 +4,7 @@ from typing import Literal
 
 from pydantic import Field
 
-from pgc.options import Options
+from pgc.options import MAX_THREADS, Options, count
 from pgc.registry import ImplementationSpec
 
 
@@ -22,10 +22,10 @@ class TorchPBROptions(Options):
     """Shade with interpolated vertex normals (False: flat faces)."""
     ray_offset: float = Field(1e-4, gt=0.0)
     """Occlusion rays start this far above the surface (fraction of the bounding-box diagonal)."""
-    threads: int = Field(0, ge=0)
+    threads: int = count(0, 0, MAX_THREADS)
     """torch intra-op threads while shading (restored afterwards); 0 keeps torch's setting. On a loaded
     machine 1 thread can be ~10x faster than contended OpenMP threads."""
-    chunk: int = Field(4096, ge=64)
+    chunk: int = count(4096, 64, 1 << 24)
     """Points shaded per torch batch (memory ~ chunk x directions x 3 floats)."""
 
 

@@ -6,7 +6,7 @@ from typing import Literal
 
 from pydantic import Field
 
-from pgc.options import Options
+from pgc.options import MAX_THREADS, Options, count
 from pgc.registry import ImplementationSpec
 
 
@@ -17,7 +17,8 @@ class TorchSplatOptions(Options):
                             "kernel), 'torch' (vectorised pure torch compositing, slow; cross-check), 'auto' "
                             "(fused if it builds, else cpp, else torch); kernels are built once and cached")
     tile_size: int = Field(16, ge=4, le=64, description="tile edge in pixels for binning")
-    threads: int = Field(0, ge=0, description="kernel threads; 0 = the cores allotted to the process (OMP_NUM_THREADS, else all usable cores)")
+    threads: int = count(0, 0, MAX_THREADS, "kernel threads; 0 = the cores allotted to the process (OMP_NUM_THREADS, "
+                         "else all usable cores)")
     near: float = Field(0.01, gt=0.0, description="near plane (metres): Gaussians with camera z below are culled")
 
 

@@ -12,10 +12,14 @@ from __future__ import annotations
 
 import colorsys
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pgc.events import Reporter
+
+if TYPE_CHECKING:
+    from pgc.roles.scene_renderer import SceneRenderer
 
 
 @dataclass
@@ -74,8 +78,9 @@ def random_light(rng: np.random.Generator):
 
 def make_albedo_data(garment_kind: str, scenes: int, views: int, resolution: int, seed: int,
                      spp: int = 16, texture: int = 1024, sampler: str = "ldsampler", garment_edge: float = 0.02,
-                     reporter: Reporter | None = None) -> AlbedoData:
-    """Render ``scenes`` x ``views`` training images of ``garment_kind`` (deterministic in ``seed``).
+                     reporter: Reporter | None = None, *, renderer: SceneRenderer) -> AlbedoData:
+    """Render ``scenes`` x ``views`` training images of ``garment_kind`` with ``renderer`` (the configuration's,
+    see :func:`pgc.synth.render.scene_renderer`; deterministic in ``seed``).
 
     Defaults follow the ``default`` capture preset (texture, mesh resolution, low-discrepancy sampler);
     ``spp`` 16 of that sampler is about the noise of the capture (64 spp) doubled. Per scene: garment
@@ -85,8 +90,6 @@ def make_albedo_data(garment_kind: str, scenes: int, views: int, resolution: int
     from pgc.synth import fabrics, garments, rig
     from pgc.synth.body import make_body
     from pgc.synth.ground_truth import GroundTruth
-    from pgc.synth.render import build_scene, ground_truth_layers, render_color
-
     reporter = reporter or Reporter.silent()
     body = make_body(edge_length=0.022)
     height = body.shape.height
@@ -102,13 +105,13 @@ def make_albedo_data(garment_kind: str, scenes: int, views: int, resolution: int
             fibres = fabrics.make_fibres(fab, cloth, material, int(rng.integers(1 << 30)))
             light = random_light(rng)
             geometry = GroundTruth(body.mesh(), cloth, material, light, normal_map, fibres).geometry()
-            scene, labels = build_scene(geometry, light)
+            scene, labels = renderer.build_scene(geometry, light)
             cams = rig.dome_cameras(views, resolution, resolution, center=(0.0, 0.5 * height, 0.0),
                                     distance=1.55 * height, subject_radius=0.52 * height,
                                     seed=int(rng.integers(1 << 30)))
             for c, cam in enumerate(cams):
-                color, _ = render_color(scene, cam, spp, int(rng.integers(1 << 30)), sampler)
-                layers = ground_truth_layers(scene, labels, geometry, cam, 2)
+                color, _ = renderer.render_color(scene, cam, spp, int(rng.integers(1 << 30)), sampler)
+                layers = renderer.ground_truth_layers(scene, labels, geometry, cam, 2)
                 out["images"].append(color)
                 out["albedo"].append(layers["albedo"])
                 out["mask"].append(layers["mask"])

@@ -10,8 +10,9 @@ workload parameters. A TOML file, one table per role::
 A preset table may hold ``options``: options given to every implementation of the role in that preset
 (under each variant's own options), e.g. ``tiny = { options = { target_vertices = 3000 } }``.
 
-Roles missing from the file are not run. Unknown roles, unknown or unavailable implementations and invalid
-options fail before any work starts, naming the file and listing what exists. Option strings may contain
+Roles missing from the file are not run. Unknown roles, unknown or unavailable implementations, factories that
+do not implement their role and invalid options fail before any work starts, naming the file and listing what
+exists (``"*"`` leaves out, with the reason, the ones that cannot run). Option strings may contain
 ``{capture}``: the synthetic capture's folder.
 """
 
@@ -23,7 +24,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pgc.errors import PGCConfigError
+from pgc.errors import PGCConfigError, PGCDataError
+from pgc.io.limits import read_toml
 
 DEFAULT_MATRIX = Path(__file__).with_name("default_matrix.toml")
 PRESETS = ("tiny", "default")
@@ -64,7 +66,8 @@ class RolePlan:
     runs: list[Run]
     workload: dict[str, Any]
     skipped: dict[str, str] = field(default_factory=dict)
-    """Implementations left out of a ``"*"`` selection because they are unavailable: name -> reason."""
+    """Implementations left out of a ``"*"`` selection because they cannot run
+    (:meth:`pgc.registry.Implementation.problem`): name -> reason."""
 
 
 def load_matrix(path: str | os.PathLike | None, registry: Any, preset: str,
@@ -74,11 +77,13 @@ def load_matrix(path: str | os.PathLike | None, registry: Any, preset: str,
     if preset not in PRESETS:
         raise PGCConfigError(f"unknown bench preset '{preset}'; presets: {', '.join(PRESETS)}")
     try:
-        table = tomllib.loads(path.read_text())
+        table = read_toml(path)
     except FileNotFoundError:
         raise PGCConfigError(f"bench matrix {path} does not exist") from None
-    except tomllib.TOMLDecodeError as exc:
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise PGCConfigError(f"bench matrix {path}: invalid TOML ({exc})") from None
+    except PGCDataError as exc:  # a size or nesting limit
+        raise PGCConfigError(f"bench matrix {exc}") from None
     for role in list(table) + list(roles or []):
         if role not in WORKLOADS:
             raise PGCConfigError(f"{path}: unknown role '{role}'; roles with a bench workload: "
@@ -104,8 +109,9 @@ def _role_plan(path: Path, role: str, spec: dict[str, Any], registry: Any, prese
     skipped: dict[str, str] = {}
     if names == "*":
         impls = registry.list(role)
-        skipped = {i.name: i.reason for i in impls if not i.available}
-        names = [i.name for i in impls if i.available]
+        reasons = {i.name: i.problem() for i in impls}
+        skipped = {name: reason for name, reason in reasons.items() if reason}
+        names = [name for name, reason in reasons.items() if not reason]
     elif not isinstance(names, list) or not all(isinstance(n, str) for n in names):
         raise PGCConfigError(f"{where}: 'implementations' must be \"*\" or a list of names, got {names!r}")
     for name in names:
@@ -115,6 +121,7 @@ def _role_plan(path: Path, role: str, spec: dict[str, Any], registry: Any, prese
             raise PGCConfigError(f"{where}: {exc}") from None
         if not impl.available:
             raise PGCConfigError(f"{where}: {role} '{name}' is unavailable: {impl.reason}")
+        impl.check()
     variants = spec.get("variants", {})
     for name in variants:
         if name not in names:

@@ -75,10 +75,9 @@ def read_json(path: str | os.PathLike) -> list[dict[str, Any]]:
     path = Path(path)
     if not path.is_file():
         raise PGCDataError(f"{path}: no bench.json there; run 'pgc bench --out {path.parent}' first")
-    try:
-        records = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise PGCDataError(f"{path}: not valid JSON ({exc})") from exc
+    from pgc.io.limits import read_json as read_limited
+
+    records = read_limited(path, "bench.json (a list of bench records)")
     validate(records, str(path))
     return records
 
@@ -105,16 +104,19 @@ def _num(x: float | None) -> str:
 
 def read_csv(path: str | os.PathLike) -> list[dict[str, Any]]:
     """The records of a CSV written by :func:`write_csv` (the inverse: floats round-trip exactly)."""
+    from pgc.io.limits import loads_json
+
     out = []
     with open(path, newline="") as f:
         for row in csv.DictReader(f):
             r: dict[str, Any] = {"role": row["role"], "implementation": row["implementation"],
-                                 "preset": row["preset"], "settings": json.loads(row["settings"]),
+                                 "preset": row["preset"],
+                                 "settings": loads_json(row["settings"], f"{path}: column 'settings'"),
                                  "seconds": float(row["seconds"]), "peak_mb": float(row["peak_mb"]),
                                  "errors": {k[len(ERROR_PREFIX):]: float(v) for k, v in row.items()
                                             if k.startswith(ERROR_PREFIX) and v != ""},
                                  "error_key": row["error_key"], "label": row["label"],
-                                 "versions": json.loads(row["versions"]),
+                                 "versions": loads_json(row["versions"], f"{path}: column 'versions'"),
                                  "x_reference": float(row["x_reference"]) if row["x_reference"] else None,
                                  "detail": row["detail"] or None}
             if row["failed"]:

@@ -17,19 +17,20 @@ from pgc.events import Reporter
 DETAILS = "details"
 
 
-def synthetic_capture(out: Path, preset: str, reporter: Reporter) -> str:
-    """The synthetic capture of ``preset`` in ``out/capture-PRESET`` (generated once; reused when complete).
-    Workers of a distributed bench wait on a lock file while one of them generates it."""
+def synthetic_capture(out: Path, preset: str, registry: Any, reporter: Reporter) -> str:
+    """The synthetic capture of ``preset`` in ``out/capture-PRESET``, rendered by the default configuration's scene
+    renderer (generated once per preset and renderer: :func:`pgc.pipeline.demo.synthetic_capture`). Workers of a
+    distributed bench wait on a lock file while one of them generates it."""
     import fcntl
 
-    from pgc.synth.generate import generate
+    from pgc.config import resolve
+    from pgc.pipeline.demo import synthetic_capture as generate_once
 
     root = out / f"capture-{preset}"
     out.mkdir(parents=True, exist_ok=True)
     with open(out / f".capture-{preset}.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
-        if not (root / "transforms.json").is_file() or not (root / "ground_truth" / "full.ply").is_file():
-            generate(root, preset, reporter=reporter)
+        generate_once(root, preset, 0, resolve(None, registry, require_available=False), reporter)
     return str(root)
 
 
@@ -39,7 +40,7 @@ def bench_role(out: Path, preset: str, plan: RolePlan, registry: Any, reporter: 
 
     def capture_dir() -> str:
         if not capture:
-            capture.append(synthetic_capture(out, preset, reporter))
+            capture.append(synthetic_capture(out, preset, registry, reporter))
         return capture[0]
 
     module = importlib.import_module(WORKLOADS[plan.role])

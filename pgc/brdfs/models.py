@@ -4,9 +4,12 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
+import numpy as np
+
 from pgc.brdfs.maths import EVALUATORS
 from pgc.brdfs.parameters import PARAMETERS
 from pgc.brdfs.xp import namespace
+from pgc.checks import require_finite
 from pgc.errors import PGCDataError
 from pgc.roles.brdf import BRDF, BRDFParameter
 
@@ -16,7 +19,9 @@ class ClothBRDF(BRDF):
 
     ``eval_cos(wi, wo, ...)``: ``wi`` toward the light, ``wo`` toward the viewer (local frame, z = normal),
     unit vectors (..., 3); returns ``f(wi, wo) max(cos theta_i, 0)`` (..., 3). Missing parameters take
-    their initial values; unknown names are an error. ``backend``: "numpy", "torch" or "jax".
+    their initial values; unknown names are an error. ``backend``: "numpy", "torch" or "jax". NaN/Inf are
+    refused in numpy inputs and in parameters given as numbers (tensors of the other backends are not inspected:
+    that would synchronise or break tracing).
     """
 
     model: ClassVar[str] = ""
@@ -34,7 +39,15 @@ class ClothBRDF(BRDF):
         return out
 
     def eval_cos(self, wi: Any, wo: Any, base_color: Any, params: dict[str, Any], backend: str = "numpy") -> Any:
-        return EVALUATORS[self.model](namespace(backend), wi, wo, base_color, self.full_params(params))
+        full = self.full_params(params)
+        where = f"brdf '{self.model}'"
+        if backend == "numpy":
+            for name, value in (("wi", wi), ("wo", wo), ("base_color", base_color)):
+                require_finite(where, name, value)
+        for name, value in full.items():
+            if isinstance(value, (int, float, list, tuple, np.ndarray)):
+                require_finite(where, f"parameter '{name}'", value)
+        return EVALUATORS[self.model](namespace(backend), wi, wo, base_color, full)
 
 
 class LambertianBRDF(ClothBRDF):

@@ -4,11 +4,13 @@ the config's ``[plugins] block`` applied), output-path checks and the output fol
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
+from pgc.checks import naming_output
 from pgc.errors import PGCConfigError, PGCDataError
 
 
@@ -51,9 +53,13 @@ def reporter_for(args: argparse.Namespace):
 
 
 def load_config(args: argparse.Namespace, registry: Any):
+    """The run configuration of ``--config`` (the defaults without one), validated, with every chosen
+    implementation checked (:meth:`pgc.config.RunConfig.check_implementations`) before any work."""
     from pgc import config
 
-    return config.load(getattr(args, "config", None), registry)
+    cfg = config.load(getattr(args, "config", None), registry)
+    cfg.check_implementations()
+    return cfg
 
 
 def emit(args: argparse.Namespace, result: dict[str, Any], text: str) -> None:
@@ -63,27 +69,33 @@ def emit(args: argparse.Namespace, result: dict[str, Any], text: str) -> None:
 
 
 def check_out_folder(path: str | os.PathLike, option: str = "--out") -> Path:
-    """``path`` as an output folder that can be created and written, else a clear error (before any work)."""
+    """``path`` as an output folder that can be created and written, else a clear error (before any work;
+    nothing is created)."""
+    from pgc.io.atomic import check_folder
+
     out = Path(path)
-    if out.exists() and not out.is_dir():
-        raise PGCDataError(f"{option} {out}: is a file, not a folder; give a folder path (it is created if missing)")
-    parent = out
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir():
-        raise PGCDataError(f"{option} {out}: {parent} is a file, so no folder can be created below it; give "
-                           "another path")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise PGCDataError(f"{option} {out}: {parent} is not writable; check its permissions or give another path")
+    try:
+        existing = check_folder(out)
+    except PGCDataError as exc:
+        raise PGCDataError(f"{option} {exc}") from None
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise PGCDataError(f"{option} {out}: {existing} is not writable; check its permissions or give another path")
     return out
 
 
 def check_out_file(path: str | os.PathLike, option: str = "--out", example: str = "metrics.json") -> Path:
     """``path`` as an output file that can be written (its folder is created if missing), else a clear error
-    (``example``: a file name the message suggests inside a folder given by mistake)."""
+    before any work: a folder (``example``: a file name the message suggests inside it), a named pipe, a
+    socket, a dangling link (:func:`pgc.io.atomic.write_target`), or a folder that cannot be made."""
+    from pgc.io.atomic import write_target
+
     out = Path(path)
     if out.is_dir():
         raise PGCDataError(f"{option} {out}: is a folder; give a file path (e.g. {out / example})")
+    try:
+        write_target(out)
+    except PGCDataError as exc:
+        raise PGCDataError(f"{option} {exc}") from None
     check_out_folder(out.parent if str(out.parent) else Path("."), option=f"{option} {out}: folder")
     return out
 
@@ -96,21 +108,29 @@ def check_not_inside(out: str | os.PathLike, source: str | os.PathLike, what: st
                            "its hash, so every rerun recomputes everything). Give a folder outside it")
 
 
-def writing(folder: str | os.PathLike, command: str):
-    """The exclusive lock of an output folder for the duration of a command (see :mod:`pgc.io.lock`)."""
+@contextlib.contextmanager
+def writing(folder: str | os.PathLike, command: str) -> Iterator[None]:
+    """The exclusive lock of an output folder for the duration of a command (see :mod:`pgc.io.lock`); OS errors
+    meanwhile name the folder when they name no file (:func:`pgc.checks.naming_output`)."""
     from pgc.io.lock import FolderLock
 
-    return FolderLock(folder, command)
+    with FolderLock(folder, command), naming_output(folder):
+        yield
+
+
 
 
 def read_json_file(path: Path, what: str, fix: str) -> Any:
-    """A JSON file's content, or a clear error naming the file (missing, not UTF-8, malformed)."""
+    """A JSON file's content, or a clear error naming the file (missing, not UTF-8, malformed, over the limits
+    of :func:`pgc.io.limits.read_json`) and ``fix``."""
+    from pgc.io.limits import read_json
+
     if not path.is_file():
         raise PGCDataError(f"{path}: not found; {fix}")
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise PGCDataError(f"{path}: malformed {what} ({exc}); {fix}") from None
+        return read_json(path, what)
+    except PGCDataError as exc:
+        raise PGCDataError(f"{exc}; {fix}") from None
 
 
 def read_json_object(path: Path, fix: str) -> dict[str, Any]:

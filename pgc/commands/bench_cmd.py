@@ -37,16 +37,19 @@ def run(args: argparse.Namespace) -> int:
     from pgc.bench import records as rec
     from pgc.bench.report import text_tables, write_report
     from pgc.bench.runner import run_bench
+    from pgc.checks import naming_output
 
     if args.report:
         out = Path(args.report)
         records = rec.read_json(out / "bench.json")
-        rec.write_csv(out / "bench.csv", records)
-        write_report(out, records)
+        with naming_output(out):
+            rec.write_csv(out / "bench.csv", records)
+            write_report(out, records)
     else:
         out = Path(args.out or f"runs/bench-{args.preset}")
         registry, reporter = reporter_for(args)
-        records = run_bench(out, args.preset, args.config, args.role, registry=registry, reporter=reporter,
-                            scheduler=args.scheduler, threads=args.threads)
+        with naming_output(out):
+            records = run_bench(out, args.preset, args.config, args.role, registry=registry, reporter=reporter,
+                                scheduler=args.scheduler, threads=args.threads)
     emit(args, records, text_tables(records) + f"\nrecords: {out}/bench.json  report: {out}/bench.html")
     return 0

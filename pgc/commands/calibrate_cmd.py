@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from pgc.checks import naming_output
 from pgc.commands._common import add_run_options, emit, load_config, reporter_for
 
 
@@ -39,7 +40,8 @@ def run(args: argparse.Namespace) -> int:
         options = impl.validate_options(dict(options.model_dump(), max_features=args.max_features),
                                         where="--max-features")
     calibration = impl.create(options).calibrate(read_capture(args.capture), reporter=reporter)
-    write_capture(args.out, calibration.capture)
+    with naming_output(args.out):
+        write_capture(args.out, calibration.capture)
     figures = calibration.figures
     emit(args, figures, "  ".join(f"{k}={v}" for k, v in figures.items()) + f"\nwritten to {args.out}")
     return 0

@@ -15,7 +15,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     show = s.add_parser("show", help="print the resolved config with every default")
     show.add_argument("file", nargs="?", help="config TOML (default: the built-in defaults)")
     show.add_argument("--json", action="store_true", help="print JSON instead of TOML")
-    val = s.add_parser("validate", help="check a config file without running anything")
+    val = s.add_parser("validate", help="check a config file, and that its chosen plugins implement their roles, "
+                                        "without running anything")
     val.add_argument("file", help="config TOML")
     p.set_defaults(func=run)
 
@@ -25,6 +26,7 @@ def run(args: argparse.Namespace) -> int:
 
     cfg = config.load(args.file, require_available=args.action == "validate")
     if args.action == "validate":
+        cfg.check_implementations()
         chosen = ", ".join(f"{r}={c.name}" for r, c in cfg.roles.items())
         print(f"{args.file}: ok ({chosen})")
         return 0

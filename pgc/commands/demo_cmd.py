@@ -34,11 +34,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pgc.pipeline.demo import run_demo
+    from pgc.pipeline.demo import demo_config, run_demo
     from pgc.pipeline.evaluate import VARIANTS
 
     out = check_out_folder(args.out or f"runs/demo-{args.preset}")
     registry, reporter = reporter_for(args)
+    demo_config(args.preset, args.config, registry).check_implementations()  # before the folder is made
     with writing(out, "pgc demo"):
         summary = run_demo(out, args.preset, args.config, seed=args.seed, reporter=reporter, registry=registry)
     lines = [f"{v:>10}: " + "  ".join(f"{k}={x:.4f}" for k, x in summary[v].items()) for v in VARIANTS]

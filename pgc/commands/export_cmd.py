@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from pgc.checks import naming_output
 from pgc.commands._common import check_not_inside, check_out_file, check_out_folder, check_run, emit
 
 EPILOG = """\
@@ -90,7 +91,8 @@ def run(args: argparse.Namespace) -> int:
     kind, asset, anim, meta = load_source(args.source)
     asset_dir = meta["asset"] if kind == "run" else args.source
     check_not_inside(args.out, asset_dir, "asset folder")
-    files = export(args.format, args.out, asset, anim)
+    with naming_output(args.out):
+        files = export(args.format, args.out, asset, anim)
     emit(args, {"source": args.source, "kind": kind, "format": args.format, "frames": anim.frames,
                 "files": [str(f) for f in files]},
          f"{args.format}: {anim.frames} frame(s) of the {kind} {args.source} -> {args.out} ({len(files)} file(s))")

@@ -9,8 +9,9 @@ import json
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("plugins", help="list installed implementations per role",
                        description="List every implementation registered through the 'pgc' entry points, "
-                                   "by role, with its provider and availability. Unavailable ones say what to "
-                                   "install; plugins that failed to load show their error.")
+                                   "by role, with its provider and availability. Each available one's factory is "
+                                   "imported and checked against its role's interface. Unavailable ones say what "
+                                   "to install or what is wrong; plugins that failed to load show their error.")
     from pgc.registry import ROLES
 
     p.add_argument("--role", choices=list(ROLES), help="only this role")
@@ -18,9 +19,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def rows(registry) -> list[dict]:
-    out = [{"role": i.role, "name": i.name, "provider": i.provider, "plugin": i.plugin, "available": i.available,
-            "reason": i.reason, "description": i.spec.description} for i in registry.list()]
+def rows(registry, role: str | None = None) -> list[dict]:
+    """One row per implementation (of ``role``, default every role; each available one's factory imported and
+    checked) and per plugin that failed to load."""
+    out = []
+    for i in registry.list(role):
+        reason = i.problem()
+        out.append({"role": i.role, "name": i.name, "provider": i.provider, "plugin": i.plugin,
+                    "available": reason is None, "reason": reason, "description": i.spec.description})
     out += [{"role": None, "name": b.plugin, "provider": b.provider, "plugin": b.plugin, "available": False,
              "reason": f"plugin failed to load: {b.error}", "description": ""} for b in registry.broken]
     return out
@@ -30,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
     from pgc.registry import ROLES, Registry
 
     registry = Registry.discover()
-    data = [r for r in rows(registry) if args.role is None or r["role"] in (args.role, None)]
+    data = rows(registry, args.role)
     if args.json:
         print(json.dumps(data, indent=2))
         return 0

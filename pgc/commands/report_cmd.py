@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from pgc.checks import naming_output
 from pgc.commands._common import check_out_folder, emit, read_json_file, read_json_object
 from pgc.errors import PGCDataError
 
@@ -72,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
     from pgc.pipeline.report import report_folder
 
     check_inputs(Path(args.folder), args.bench)
-    result = report_folder(args.folder, args.bench)
+    with naming_output(args.folder):
+        result = report_folder(args.folder, args.bench)
     emit(args, result, f"report: {result['path']} ({result['files']} files, {result['bytes'] / 1024:.0f} KiB)")
     return 0

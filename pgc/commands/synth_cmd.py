@@ -5,13 +5,18 @@ from __future__ import annotations
 
 import argparse
 import json
+from typing import TYPE_CHECKING
 
 from pgc.errors import PGCDataError
 
+if TYPE_CHECKING:
+    from pgc.events import Reporter
+    from pgc.roles.scene_renderer import SceneRenderer
+
 USAGE = """\
 pgc synth OUT [--preset tiny|default|cotton|large|knit] [--garment tshirt|dress] [--fabric NAME]
-          [--framing body|garment] [--detail none|relief|seams] [--fit loose|resting] [--seed N]
-pgc synth render-frames CAPTURE GARMENT_NPZ BODY_NPZ OUT_DIR [--spp N]"""
+          [--framing body|garment] [--detail none|relief|seams] [--fit loose|resting] [--seed N] [--config FILE]
+pgc synth render-frames CAPTURE GARMENT_NPZ BODY_NPZ OUT_DIR [--spp N] [--config FILE]"""
 
 EPILOG = """\
 forms:
@@ -40,9 +45,10 @@ details: none (the simulation mesh), relief (knit wales, ribbed bands, seams, po
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("synth", help="generate a synthetic capture with ground truth", usage=USAGE,
-                       description="Generate a synthetic multi-view capture of a clothed body (Mitsuba path "
-                                   "tracing on the CPU) with complete ground truth: meshes, materials, textures, "
-                                   "light, body model and motions, albedo and depth per view.",
+                       description="Generate a synthetic multi-view capture of a clothed body (rendered by the "
+                                   "configured scene_renderer; default: Mitsuba path tracing on the CPU) with "
+                                   "complete ground truth: meshes, materials, textures, light, body model and "
+                                   "motions, albedo and depth per view.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("paths", nargs="+", metavar="OUT", help="output folder (or 'render-frames' and its paths)")
     p.add_argument("--preset", default="default", help="tiny, default, cotton, large or knit (default: default)")
@@ -61,31 +67,41 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--views", type=int, default=None, help="override the preset's number of cameras")
     p.add_argument("--resolution", type=int, default=None, help="override the preset's image size, pixels")
     p.add_argument("--spp", type=int, default=None, help="override the path-tracing samples per pixel")
+    p.add_argument("--config", metavar="FILE", help="run configuration TOML: its [scene_renderer] renders "
+                                                     "(default: the built-in defaults)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from pgc.progress import ProgressPrinter
+    from pgc.checks import naming_output
+    from pgc.commands._common import check_out_folder, discover, load_config
     from pgc.events import Reporter
-    from pgc.registry import default_registry
+    from pgc.progress import ProgressPrinter
+    from pgc.synth.render import scene_renderer
 
-    registry = default_registry()
-    registry.plugin_manager.register(ProgressPrinter())
-    reporter = Reporter(registry.hook)
-    if args.paths[0] == "render-frames":
-        return _render_frames(args, reporter)
-    if len(args.paths) != 1:
+    frames = args.paths[0] == "render-frames"
+    if frames and len(args.paths) != 5:
+        raise PGCDataError(f"render-frames needs CAPTURE GARMENT_NPZ BODY_NPZ OUT_DIR; usage:\n{USAGE}")
+    if not frames and len(args.paths) != 1:
         raise PGCDataError(f"expected one output folder, got {args.paths}; usage:\n{USAGE}")
-    from pgc.commands._common import check_out_folder
+    if not frames:
+        check_out_folder(args.paths[0], option="OUT")
+    registry = discover(args)
+    registry.plugin_manager.register(ProgressPrinter(), name="progress")
+    reporter = Reporter(registry.hook)
+    cfg = load_config(args, registry)
+    if frames:
+        return _render_frames(args, reporter, scene_renderer(cfg))
     from pgc.synth.generate import generate, get_preset
-
-    check_out_folder(args.paths[0], option="OUT")
 
     preset = get_preset(args.preset, views=args.views, resolution=args.resolution, spp=args.spp,
                         framing=args.framing)
-    capture = generate(args.paths[0], preset, garment=args.garment, fabric=args.fabric, seed=args.seed,
-                       looseness=args.looseness, reporter=reporter, detail=args.detail, fit=args.fit)
+    renderer = scene_renderer(cfg)
+    with naming_output(args.paths[0]):
+        capture = generate(args.paths[0], preset, garment=args.garment, fabric=args.fabric, seed=args.seed,
+                           looseness=args.looseness, reporter=reporter, detail=args.detail, fit=args.fit,
+                           renderer=renderer)
     summary = {"out": capture.root, "views": len(capture.views), "resolution": preset.resolution,
                "spp": preset.spp, "contact_sheet": f"{capture.root}/contact_sheet.png",
                "ground_truth": f"{capture.root}/ground_truth", "seconds": reporter.timings}
@@ -94,13 +110,11 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _render_frames(args: argparse.Namespace, reporter) -> int:
-    if len(args.paths) != 5:
-        raise PGCDataError(f"render-frames needs CAPTURE GARMENT_NPZ BODY_NPZ OUT_DIR; usage:\n{USAGE}")
+def _render_frames(args: argparse.Namespace, reporter: Reporter, renderer: SceneRenderer) -> int:
     from pgc.synth.frames import render_frames_files
 
     _, capture, garment, body, out = args.paths
-    written = render_frames_files(capture, garment, body, out, spp=args.spp, reporter=reporter)
+    written = render_frames_files(capture, garment, body, out, spp=args.spp, reporter=reporter, renderer=renderer)
     print(json.dumps({"frames": [str(p) for p in written]}, indent=2) if args.json else
           f"wrote {len(written)} frames to {out}")
     return 0

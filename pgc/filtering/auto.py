@@ -27,11 +27,11 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, field_validator
 
 from pgc.errors import PGCDataError
 from pgc.filtering.kernel import check_kernel_size, kernel_size_for_height, odd_size
-from pgc.options import Options
+from pgc.options import Options, _check_integer, count
 from pgc.roles.filter import Filter
 from pgc.roles.metric import Metric
 
@@ -65,17 +65,31 @@ class TrainingFrame:
         return _mask(self.mask, self.near_alpha)
 
 
+MAX_KERNEL_SIZE = 4095
+"""Largest low-pass kernel (px) a setting may ask for (the paper's 71 px at 2668 px scales to 437 px at 16384)."""
+
+
 class KernelSelection(Options):
     """How the composition stage sets the low-pass kernel (see the module docstring)."""
 
     mode: Literal["paper", "fixed", "error", "gradient", "metric"] = Field("paper", description="rule for the size")
-    size: int | None = Field(None, ge=1, description="kernel size in px for mode 'fixed' (odd)")
-    sizes: list[int] | None = Field(None, description="candidate sizes (odd px); default: candidate_sizes(H, W)")
+    size: int | None = count(None, 1, MAX_KERNEL_SIZE, "kernel size in px for mode 'fixed' (odd)")
+    sizes: list[int] | None = Field(None, description=(
+        f"candidate sizes (odd px); default: candidate_sizes(H, W); each an integer in [1, {MAX_KERNEL_SIZE}]"))
     tolerance: float = Field(0.1, ge=0.0, le=1.0, description="modes 'error' and 'metric': the smallest size whose "
                              "score is within this share of the score range from the best")
     gradient_ratio: float = Field(0.15, gt=0.0, lt=1.0,
                                   description="mode 'gradient': target mean gradient / unblurred mean gradient")
     metric: str = Field("lpips", description="mode 'metric': the metric plugin that scores each size")
+
+    @field_validator("sizes", mode="before")
+    @classmethod
+    def _sizes_in_range(cls, value: object) -> object:
+        """Every candidate size in [1, MAX_KERNEL_SIZE] (a list field declares no range of its own)."""
+        if isinstance(value, (list, tuple)):
+            for item in value:
+                _check_integer(item, 1, MAX_KERNEL_SIZE, "every item: ")
+        return value
 
 
 def candidate_sizes(height: int, width: int, count: int = 10) -> list[int]:

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from pgc.errors import PGCDataError
-from pgc.roles.filter import DENOMINATOR_EPS
+from pgc.roles.filter import DENOMINATOR_EPS, check_filter_inputs, check_kernel_size  # noqa: F401 (re-exported)
 
 PAPER_KERNEL_SIZE = 71
 """Kernel size (px) the paper uses on its training images."""
@@ -33,14 +33,6 @@ def kernel_size_for_height(height: int) -> int:
     return max(3, odd_size(PAPER_KERNEL_SIZE * height / PAPER_IMAGE_HEIGHT))
 
 
-def check_kernel_size(kernel_size: int) -> int:
-    """``kernel_size`` as an int, or a PGCDataError if it is not a positive odd integer."""
-    if isinstance(kernel_size, bool) or int(kernel_size) != kernel_size or kernel_size < 1 or kernel_size % 2 == 0:
-        raise PGCDataError(f"filter: kernel_size must be a positive odd integer (pixels), got {kernel_size!r}; "
-                           "use pgc.filtering.odd_size(x) to round a size")
-    return int(kernel_size)
-
-
 def gaussian_kernel_1d(kernel_size: int) -> np.ndarray:
     """Normalised 1-D Gaussian taps (float64, length ``kernel_size``, sigma = kernel_size / 6)."""
     kernel_size = check_kernel_size(kernel_size)
@@ -48,21 +40,6 @@ def gaussian_kernel_1d(kernel_size: int) -> np.ndarray:
     x = np.arange(-radius, radius + 1, dtype=np.float64)
     taps = np.exp(-0.5 * (x / (kernel_size / 6.0)) ** 2)
     return taps / taps.sum()
-
-
-def check_filter_inputs(image: np.ndarray, alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Validate the role's inputs: ``image`` (H, W, C) and ``alpha`` (H, W), finite; returned as float32."""
-    image = np.asarray(image, dtype=np.float32)
-    alpha = np.asarray(alpha, dtype=np.float32)
-    if image.ndim != 3:
-        raise PGCDataError(f"filter: image must be (H, W, C), got shape {image.shape}")
-    if alpha.shape != image.shape[:2]:
-        raise PGCDataError(f"filter: alpha shape {alpha.shape} must equal the image size {image.shape[:2]}")
-    if not (np.isfinite(image).all() and np.isfinite(alpha).all()):
-        raise PGCDataError("filter: image or alpha contains NaN or Inf")
-    if alpha.size and (alpha.min() < -1e-6 or alpha.max() > 1 + 1e-6):
-        raise PGCDataError(f"filter: alpha must lie in [0, 1], got [{alpha.min()}, {alpha.max()}]")
-    return image, np.clip(alpha, 0.0, 1.0)
 
 
 def renormalise(numerator: Any, denominator: Any, image: Any) -> Any:

@@ -4,41 +4,41 @@ from __future__ import annotations
 
 from pydantic import Field, field_validator
 
-from pgc.options import Options
+from pgc.io.limits import MAX_VIEWS
+from pgc.options import Options, count
 
 
 class FinishOptions(Options):
     """Finishing of a raw surface into a simulation-quality, UV-mapped, labelled mesh."""
 
-    target_vertices: int = Field(15_000, ge=100, le=2_000_000,
-                                 description="vertex count of the isotropic remesh (paper: 11-18k)")
-    remesh_iterations: int = Field(6, ge=1, le=50, description="isotropic remeshing iterations per pass")
+    target_vertices: int = count(15_000, 100, 2_000_000, "vertex count of the isotropic remesh (paper: 11-18k)")
+    remesh_iterations: int = count(6, 1, 50, "isotropic remeshing iterations per pass")
     min_component_fraction: float = Field(0.02, ge=0.0, le=1.0,
                                           description="drop connected components with fewer faces than this "
                                                       "fraction of the largest one")
-    max_hole_edges: int = Field(1000, ge=0, description="close holes bounded by at most this many edges")
-    uv_resolution: int = Field(1024, ge=64, le=16384, description="texture size the UV atlas is packed for (px)")
-    uv_padding: int = Field(2, ge=0, le=64, description="texels between UV charts")
+    max_hole_edges: int = count(1000, 0, 1_000_000, "close holes bounded by at most this many edges")
+    uv_resolution: int = count(1024, 64, 16384, "texture size the UV atlas is packed for (px)")
+    uv_padding: int = count(2, 0, 64, "texels between UV charts")
     label_depth_tolerance_px: float = Field(1.5, gt=0.0, description="visibility test tolerance of the label "
                                                                        "vote, in pixel footprints")
-    label_smooth_iterations: int = Field(2, ge=0, le=20, description="majority-filter passes over face labels")
-    min_views: int = Field(4, ge=2, description="fewest views a capture must have")
+    label_smooth_iterations: int = count(2, 0, 20, "majority-filter passes over face labels")
+    min_views: int = count(4, 2, MAX_VIEWS, "fewest views a capture must have")
 
 
 class DenseOptions(FinishOptions):
     """Multi-view stereo (plane sweep guided by the visual hull), shared by the open3d and colmap reconstructors."""
 
-    stereo_views: int = Field(64, ge=0, description=(
+    stereo_views: int = count(64, 0, MAX_VIEWS, (
         "views that get a depth map, evenly spread over the capture (the visual hull uses every view); stereo's "
         "time grows with them, and 64 gives captures of up to 64 views the mesh they had before the option; "
         "0 = every view"))
-    neighbours: int = Field(6, ge=1, le=32, description="neighbour views per reference view (among stereo_views)")
-    top_k: int = Field(3, ge=1, le=32, description="best neighbours averaged per depth hypothesis")
-    window: int = Field(7, ge=3, le=31, description="NCC window side (pixels, odd)")
+    neighbours: int = count(6, 1, 32, "neighbour views per reference view (among stereo_views)")
+    top_k: int = count(3, 1, 32, "best neighbours averaged per depth hypothesis")
+    window: int = count(7, 3, 31, "NCC window side (pixels, odd)")
     band: float = Field(0.12, gt=0.0, description="depth range swept behind the visual hull (metres)")
     step_px: float = Field(0.5, gt=0.0, le=4.0, description="depth step in pixel footprints")
     min_score: float = Field(0.5, ge=-1.0, le=1.0, description="lowest accepted NCC")
-    min_consistent: int = Field(2, ge=0, description="neighbour depth maps that must agree with a depth")
+    min_consistent: int = count(2, 0, 32, "neighbour depth maps that must agree with a depth (at most neighbours)")
     consistency: float = Field(0.01, gt=0.0, description="relative depth agreement of the consistency check")
     hull_tolerance: float = Field(0.05, ge=0.0, le=2.0, description="keep the visual hull's depth where its NCC "
                                                                     "is within this of the best hypothesis")

@@ -22,14 +22,15 @@ import importlib.metadata as metadata
 import json
 import os
 import platform
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any
 
 import numpy as np
 
 from pgc.errors import PGCDataError
 from pgc.io import images as imgio
-from pgc.io.atomic import write_json
+from pgc.io.atomic import ensure_folder, write_json
+from pgc.io.limits import read_json
 from pgc.io.gaussians_ply import read_bound_gaussians_ply, write_bound_gaussians_ply
 from pgc.io.mesh import read_mesh, write_mesh
 from pgc.types import GarmentAsset, Light, Material
@@ -54,8 +55,7 @@ def package_versions(names: tuple[str, ...] = VERSIONED_PACKAGES) -> dict[str, s
 
 def write_asset(path: str | os.PathLike, asset: GarmentAsset) -> None:
     """Write ``asset`` as an asset directory (created if needed; existing files are replaced)."""
-    root = Path(path)
-    root.mkdir(parents=True, exist_ok=True)
+    root = ensure_folder(path)
     files: dict[str, str] = {"garment": "garment.obj", "body": "body.ply" if asset.body.uv is None else "body.obj",
                              "gaussians": "gaussians.ply", "material": "material.json", "light": "light.json"}
     write_mesh(root / files["garment"], asset.garment)
@@ -96,15 +96,30 @@ def file_hash(path: Path) -> str:
     return h.hexdigest()
 
 
+def asset_file(root: Path, name: object, where: str) -> Path:
+    """The path of an asset file named ``name`` in ``where`` (a field of a file of the asset ``root``): a
+    relative path inside the asset folder (no absolute path, no ``..``, no symbolic link leading outside)."""
+    pure = PurePosixPath(name) if isinstance(name, str) else None
+    if pure is None or not name or pure.is_absolute() or "\\" in name or ".." in pure.parts or not pure.name:
+        raise PGCDataError(f"{where}: {name!r} is not a relative path inside the asset folder {root}; asset files "
+                           "are named relative to the folder, without '..' (re-create the asset with pgc reconstruct)")
+    path = root / pure
+    real_root = os.path.realpath(root)
+    if os.path.commonpath([real_root, os.path.realpath(path)]) != real_root:
+        raise PGCDataError(f"{where}: {name!r} leads outside the asset folder {root} (through a symbolic link to "
+                           f"{os.path.realpath(path)}); copy the file into the asset instead of linking it")
+    return path
+
+
 def verify_files(root: Path, manifest: dict[str, Any]) -> None:
-    """Refuse an asset folder whose files are missing or are not the ones its manifest was written with
-    (an interrupted overwrite, or files copied in from another asset)."""
+    """Refuse an asset folder whose files are missing, lie outside it or are not the ones its manifest was
+    written with (an interrupted overwrite, or files copied in from another asset)."""
     hashes = manifest.get("hashes")
     if not isinstance(hashes, dict):
         raise PGCDataError(f"{root / MANIFEST}: no 'hashes' of the asset files (written by an older PGC, or "
                            "edited); re-create the asset with pgc reconstruct")
     for key, name in manifest["files"].items():
-        path = root / str(name)
+        path = asset_file(root, name, f"{root / MANIFEST}: files.{key}")
         if not path.is_file():
             raise PGCDataError(f"{path}: file not found; the asset folder {root} is incomplete. Rerun pgc reconstruct "
                                "(completed stages are reused)")
@@ -115,12 +130,7 @@ def verify_files(root: Path, manifest: dict[str, Any]) -> None:
 
 
 def _load_json(path: Path) -> Any:
-    if not path.is_file():
-        raise PGCDataError(f"{path}: not found")
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise PGCDataError(f"{path}: malformed JSON ({exc})") from exc
+    return read_json(path, "PGC asset file")
 
 
 def read_manifest(path: str | os.PathLike) -> dict[str, Any]:
@@ -140,6 +150,15 @@ def read_manifest(path: str | os.PathLike) -> dict[str, Any]:
     return manifest
 
 
+def _listed(root: Path, manifest: dict[str, Any], name: Any, where: str) -> Path:
+    """An asset file that another asset file names: inside the folder and among the manifest's (hashed) files."""
+    path = asset_file(root, name, where)
+    if name not in manifest["files"].values():
+        raise PGCDataError(f"{where}: {name!r} is not among the files of {root / MANIFEST}, so its hash is not "
+                           "checked; re-create the asset with pgc reconstruct")
+    return path
+
+
 def read_asset(path: str | os.PathLike) -> GarmentAsset:
     """Read an asset directory written by :func:`write_asset`."""
     root = Path(path)
@@ -149,7 +168,7 @@ def read_asset(path: str | os.PathLike) -> GarmentAsset:
     def file(key: str) -> Path:
         if key not in files:
             raise PGCDataError(f"{root / MANIFEST}: 'files' has no entry '{key}'")
-        return root / files[key]
+        return asset_file(root, files[key], f"{root / MANIFEST}: files.{key}")
 
     garment = read_mesh(file("garment"), name="garment")
     body = read_mesh(file("body"), name="body")
@@ -160,13 +179,15 @@ def read_asset(path: str | os.PathLike) -> GarmentAsset:
     mat = _load_json(file("material"))
     if not isinstance(mat, dict) or not isinstance(mat.get("brdf"), str):
         raise PGCDataError(f"{file('material')}: needs a string field 'brdf'")
-    base_color = imgio.read_exr(root / mat["base_color"]) if mat.get("base_color") else None
+    base_color = imgio.read_exr(_listed(root, manifest, mat["base_color"], f"{file('material')}: base_color")) \
+        if mat.get("base_color") else None
     material = Material(brdf=mat["brdf"], params=mat.get("params", {}), base_color=base_color)
     lt = _load_json(file("light"))
     radiance = np.asarray(lt.get("radiance", [1, 1, 1]), dtype=np.float64) if isinstance(lt, dict) else None
     if radiance is None or radiance.shape != (3,) or not np.all(np.isfinite(radiance)):
         raise PGCDataError(f"{file('light')}: 'radiance' must be 3 finite numbers")
-    envmap = imgio.read_exr(root / lt["envmap"]) if lt.get("envmap") else None
+    envmap = imgio.read_exr(_listed(root, manifest, lt["envmap"], f"{file('light')}: envmap")) \
+        if lt.get("envmap") else None
     light = Light(radiance=radiance, envmap=envmap, rotation_deg=float(lt.get("rotation_deg", 0.0)))
     return GarmentAsset(garment=garment, body=body, gaussians=gaussians, material=material, light=light,
                         heldout_views=[str(v) for v in manifest.get("heldout_views", [])],

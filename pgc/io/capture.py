@@ -24,7 +24,6 @@ PGC keys (ignored by other tools): per frame ``pgc_name``, ``pgc_segmentation_pa
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import re
@@ -37,7 +36,8 @@ import numpy as np
 
 from pgc.errors import PGCDataError
 from pgc.io import images as imgio
-from pgc.io.atomic import write_json
+from pgc.io import limits
+from pgc.io.atomic import ensure_folder, write_json
 from pgc.types import Camera, Capture, Light, View
 
 TRANSFORMS = "transforms.json"
@@ -122,8 +122,7 @@ def write_capture(root: str | os.PathLike, capture: Capture, image_format: str =
     """
     if image_format not in IMAGE_FORMATS:
         raise ValueError(f"image_format must be one of {IMAGE_FORMATS}, got '{image_format}'")
-    root = Path(root)
-    root.mkdir(parents=True, exist_ok=True)
+    root = ensure_folder(root)
     ext = ".exr" if image_format == "exr" else ".png"
     bits = 8 if image_format == "png" else 16
     used: set[str] = set()
@@ -162,6 +161,16 @@ class _Doc:
     def fail(self, where: str, problem: str) -> PGCDataError:
         return PGCDataError(f"{self.path}: {where}: {problem}")
 
+    def pixels(self, obj: dict, key: str, where: str, default: int | None = None) -> int | None:
+        """An image size in pixels: a positive whole number (``64.0`` is 64; ``64.7`` is refused)."""
+        value = self.number(obj, key, where)
+        if value is None:
+            return default
+        if value != int(value) or not 0 < value <= limits.MAX_IMAGE_PIXELS:
+            raise self.fail(where, f"'{key}' must be a whole number of pixels in [1, {limits.MAX_IMAGE_PIXELS}], "
+                                   f"got {obj[key]!r}")
+        return int(value)
+
     def number(self, obj: dict, key: str, where: str, default: float | None = None) -> float | None:
         if key not in obj:
             return default
@@ -171,7 +180,7 @@ class _Doc:
         return float(value)
 
 
-def read_capture(root: str | os.PathLike, undistort: bool = True) -> Capture:
+def read_capture(root: str | os.PathLike, undistort: bool = True, check: bool = True) -> Capture:
     """Read a capture directory (or a ``transforms.json`` path) into a :class:`Capture`.
 
     Frames with distortion (``k1 k2 p1 p2 [k3]``) are resampled to the pinhole camera with the same ``K``
@@ -180,17 +189,16 @@ def read_capture(root: str | os.PathLike, undistort: bool = True) -> Capture:
 
     Raises :class:`PGCDataError` naming the file and the problem on malformed JSON, missing or
     unreadable files, non-finite or non-rigid matrices, images whose size disagrees with the intrinsics,
-    and optional layers present for some frames only.
+    and optional layers present for some frames only; and sizes above :mod:`pgc.io.limits`. With ``check``
+    (the default) it also refuses a capture nothing can be reconstructed from
+    (:func:`pgc.io.capture_checks.check_capture`: no baseline, masks all full or all empty).
     """
     root = Path(root)
     path = root if root.suffix == ".json" else root / TRANSFORMS
     root = path.parent
     if not path.is_file():
         raise PGCDataError(f"{path}: not found; a capture directory needs a {TRANSFORMS}")
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise PGCDataError(f"{path}: malformed JSON ({exc})") from exc
+    doc = limits.read_json(path, f"capture's {TRANSFORMS}")
     d = _Doc(path)
     if not isinstance(doc, dict) or not isinstance(doc.get("frames"), list) or not doc["frames"]:
         raise d.fail("top level", "needs a non-empty list 'frames'")
@@ -199,6 +207,7 @@ def read_capture(root: str | os.PathLike, undistort: bool = True) -> Capture:
         raise d.fail("pgc_version", f"unsupported capture format version {version!r} (this PGC reads "
                                     f"{FORMAT_VERSION}); upgrade PGC")
     frames = doc["frames"]
+    limits.check_count(path, "frames", len(frames), limits.MAX_VIEWS, "frames")
     _check_layer_counts(d, frames)
     labels = _read_labels(d, doc)
     light = _read_light(d, root, doc.get("pgc_light"))
@@ -206,12 +215,24 @@ def read_capture(root: str | os.PathLike, undistort: bool = True) -> Capture:
     if not isinstance(metadata, dict):
         raise d.fail("pgc_metadata", "must be an object")
     with ThreadPoolExecutor(max_workers=IO_THREADS) as pool:  # the first failing frame (in order) raises
-        views = list(pool.map(lambda ifr: _read_frame(d, root, doc, ifr[1], ifr[0], undistort), enumerate(frames)))
+        sizes = list(pool.map(lambda i: _frame_size(d, root, frames[i], i), range(len(frames))))
+        total = sum(w * h for _, (w, h) in sizes)
+        if total > limits.MAX_CAPTURE_PIXELS:
+            raise d.fail("frames", f"the {len(frames)} images hold {total} pixels together, more than the limit of "
+                                   f"{limits.MAX_CAPTURE_PIXELS} (pgc.io.limits.MAX_CAPTURE_PIXELS); use fewer or "
+                                   "smaller images")
+        views = list(pool.map(lambda i: _read_frame(d, root, doc, frames[i], i, undistort, *sizes[i]),
+                              range(len(frames))))
     names = [v.camera.name for v in views]
     if len(set(names)) != len(names):
         dup = sorted({n for n in names if names.count(n) > 1})
         raise d.fail("frames", f"camera names must be unique; repeated: {dup}")
-    return Capture(views=views, labels=labels, light=light, metadata=metadata, root=str(root))
+    capture = Capture(views=views, labels=labels, light=light, metadata=metadata, root=str(root))
+    if check:
+        from pgc.io.capture_checks import check_capture
+
+        check_capture(capture, str(path))
+    return capture
 
 
 def _check_layer_counts(d: _Doc, frames: list) -> None:
@@ -236,6 +257,9 @@ def _check_layer_counts(d: _Doc, frames: list) -> None:
 def _resolve(d: _Doc, root: Path, rel: Any, where: str) -> Path:
     if not isinstance(rel, str) or not rel:
         raise d.fail(where, f"path must be a non-empty string, got {rel!r}")
+    if os.path.isabs(rel) or ".." in re.split(r"[/\\]", rel):
+        raise d.fail(where, f"{rel!r} is not a relative path inside the capture folder {root}; a capture is "
+                            "self-contained (its folder is what is hashed): copy the file into it")
     p = root / rel
     if not p.suffix and not p.exists():  # NeRF synthetic writes "./train/r_0" without extension
         p = p.with_suffix(".png")
@@ -244,15 +268,20 @@ def _resolve(d: _Doc, root: Path, rel: Any, where: str) -> Path:
     return p
 
 
-def _read_frame(d: _Doc, root: Path, doc: dict, frame: dict, i: int, undistort: bool) -> View:
+def _frame_size(d: _Doc, root: Path, frame: dict, i: int) -> tuple[Path, tuple[int, int]]:
+    """A frame's image file and its (width, height) from the file's header (nothing decoded)."""
+    img_path = _resolve(d, root, frame.get("file_path"), f"frames[{i}].file_path")
+    return img_path, imgio.image_size(img_path)
+
+
+def _read_frame(d: _Doc, root: Path, doc: dict, frame: dict, i: int, undistort: bool, img_path: Path,
+                size: tuple[int, int]) -> View:
     where = f"frames[{i}]"
-    img_path = _resolve(d, root, frame.get("file_path"), f"{where}.file_path")
-    width, height = imgio.image_size(img_path)
-    w = d.number(frame, "w", where, d.number(doc, "w", "top level"))
-    h = d.number(frame, "h", where, d.number(doc, "h", "top level"))
-    if (w is not None and int(w) != width) or (h is not None and int(h) != height):
-        raise d.fail(where, f"image {img_path.name} is {width}x{height} but the intrinsics say "
-                            f"w={w and int(w)} h={h and int(h)}")
+    width, height = size
+    w = d.pixels(frame, "w", where, d.pixels(doc, "w", "top level"))
+    h = d.pixels(frame, "h", where, d.pixels(doc, "h", "top level"))
+    if (w is not None and w != width) or (h is not None and h != height):
+        raise d.fail(where, f"image {img_path.name} is {width}x{height} but the intrinsics say w={w} h={h}")
     K = _intrinsics(d, doc, frame, where, width, height)
     R, t = _extrinsics(d, frame, where)
     dist = _distortion(d, doc, frame, where)
@@ -376,8 +405,5 @@ def _read_light(d: _Doc, root: Path, raw: Any) -> Light | None:
     rotation = d.number(raw, "rotation_deg", "pgc_light", 0.0)
     envmap = None
     if "envmap_path" in raw:
-        envmap = imgio.read_exr(_resolve(d, root, raw["envmap_path"], "pgc_light.envmap_path"))
-        if envmap.ndim != 3 or envmap.shape[2] < 3 or envmap.shape[1] != 2 * envmap.shape[0]:
-            raise d.fail("pgc_light.envmap_path", f"environment map must be (H, 2H, 3), got {envmap.shape}")
-        envmap = envmap[..., :3]
+        envmap = imgio.read_envmap(_resolve(d, root, raw["envmap_path"], "pgc_light.envmap_path"))
     return Light(radiance=radiance, envmap=envmap, rotation_deg=rotation)

@@ -18,6 +18,7 @@ from typing import BinaryIO
 import numpy as np
 
 from pgc.errors import PGCDataError
+from pgc.io import limits
 from pgc.types import Camera, Capture, View
 
 # model id -> (name, number of parameters); every COLMAP model, so any binary file parses
@@ -28,6 +29,11 @@ CAMERA_MODELS: dict[int, tuple[str, int]] = {
 }
 MODEL_IDS = {name: (i, n) for i, (name, n) in CAMERA_MODELS.items()}
 SUPPORTED = ("SIMPLE_PINHOLE", "PINHOLE", "SIMPLE_RADIAL", "RADIAL", "OPENCV")
+FOCAL_XY = ("PINHOLE", "OPENCV", "OPENCV_FISHEYE", "FULL_OPENCV", "FOV", "THIN_PRISM_FISHEYE",
+            "RAD_TAN_THIN_PRISM_FISHEYE")
+"""Models whose first two parameters are the focal lengths fx, fy (the others start with one focal length f)."""
+QUATERNION_TOLERANCE = 1e-3
+"""Largest accepted difference between a pose quaternion's norm and 1."""
 
 
 @dataclass
@@ -98,10 +104,21 @@ class ColmapPoints:
 
 
 class _Reader:
-    """Sequential little-endian reads that name the file when it ends early."""
+    """Sequential little-endian reads that name the file when it ends early, and that refuse counts larger
+    than what is left of the file before allocating anything."""
 
     def __init__(self, f: BinaryIO, path: Path):
         self.f, self.path = f, path
+        self.size = limits.check_file_size(path, limits.MAX_TEXT_BYTES, "COLMAP model file")
+
+    def count(self, what: str, record_bytes: int) -> int:
+        """A record count (uint64), checked against the limits and the bytes left in the file."""
+        (n,) = self.read("Q")
+        limits.check_count(self.path, what, n, limits.MAX_ELEMENTS)
+        if n * record_bytes > self.size - self.f.tell():
+            raise PGCDataError(f"{self.path}: truncated binary file: {what} says {n} records of at least "
+                               f"{record_bytes} bytes, but {self.size - self.f.tell()} bytes are left")
+        return n
 
     def read(self, fmt: str):
         size = struct.calcsize("<" + fmt)
@@ -112,6 +129,9 @@ class _Reader:
 
     def array(self, dtype: str, count: int) -> np.ndarray:
         dt = np.dtype(dtype)
+        if dt.itemsize * count > self.size - self.f.tell():
+            raise PGCDataError(f"{self.path}: truncated binary file (a record of {count} entries ends past the "
+                               "end of the file)")
         data = self.f.read(dt.itemsize * count)
         if len(data) != dt.itemsize * count:
             raise PGCDataError(f"{self.path}: truncated binary file (ended inside a record)")
@@ -123,20 +143,24 @@ class _Reader:
             out += c
         if c == b"":
             raise PGCDataError(f"{self.path}: truncated binary file (unterminated image name)")
-        return out.decode("utf-8")
+        try:
+            return out.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise PGCDataError(f"{self.path}: image name {bytes(out)!r} is not UTF-8 ({exc.reason}); rename the "
+                               "image") from None
 
 
 def _read_cameras_bin(path: Path) -> dict[int, ColmapCamera]:
     cams = {}
     with open(path, "rb") as f:
         r = _Reader(f, path)
-        (n,) = r.read("Q")
-        for _ in range(n):
+        for _ in range(r.count("number of cameras", 24)):
             cam_id, model_id, width, height = r.read("iiQQ")
             if model_id not in CAMERA_MODELS:
                 raise PGCDataError(f"{path}: camera {cam_id} has unknown model id {model_id}")
             name, n_params = CAMERA_MODELS[model_id]
-            cams[cam_id] = ColmapCamera(cam_id, name, width, height, np.array(r.read(f"{n_params}d")))
+            cam = ColmapCamera(cam_id, name, width, height, np.array(r.read(f"{n_params}d")))
+            _add_unique(cams, cam_id, _checked_camera(cam, f"{path}: camera {cam_id}"), path, "camera")
     return cams
 
 
@@ -144,15 +168,15 @@ def _read_images_bin(path: Path) -> dict[int, ColmapImage]:
     images = {}
     with open(path, "rb") as f:
         r = _Reader(f, path)
-        (n,) = r.read("Q")
-        for _ in range(n):
+        for _ in range(r.count("number of images", 73)):
             image_id, *rest = r.read("i7di")
             qvec, tvec, cam_id = np.array(rest[0:4]), np.array(rest[4:7]), rest[7]
             name = r.string()
-            (n_pts,) = r.read("Q")
+            n_pts = r.count(f"number of keypoints of image {image_id}", 24)
             pts = r.array("<f8,<f8,<i8", n_pts)
             xys = np.stack([pts["f0"], pts["f1"]], axis=1) if n_pts else np.zeros((0, 2))
-            images[image_id] = ColmapImage(image_id, qvec, tvec, cam_id, name, xys, pts["f2"].astype(np.int64))
+            _add_unique(images, image_id, ColmapImage(image_id, qvec, tvec, cam_id, name, xys,
+                                                      pts["f2"].astype(np.int64)), path, "image")
     return images
 
 
@@ -160,21 +184,52 @@ def _read_points_bin(path: Path) -> ColmapPoints:
     ids, xyz, rgb, err = [], [], [], []
     with open(path, "rb") as f:
         r = _Reader(f, path)
-        (n,) = r.read("Q")
-        for _ in range(n):
+        for _ in range(r.count("number of points", 51)):
             pid, x, y, z, cr, cg, cb, e, track_len = r.read("Q3d3BdQ")
+            limits.check_count(path, f"track length of point {pid}", track_len, limits.MAX_ELEMENTS)
             r.array("<i4", 2 * track_len)
             ids.append(pid), xyz.append((x, y, z)), rgb.append((cr, cg, cb)), err.append(e)
     return ColmapPoints(np.array(ids, np.int64), np.array(xyz, np.float64).reshape(-1, 3),
                         np.array(rgb, np.uint8).reshape(-1, 3), np.array(err, np.float64))
 
 
+def _read_text(path: Path) -> list[str]:
+    """The lines of a COLMAP text file (UTF-8, at most :data:`pgc.io.limits.MAX_TEXT_BYTES`)."""
+    limits.check_file_size(path, limits.MAX_TEXT_BYTES, "COLMAP model file")
+    raw = path.read_bytes()
+    try:
+        return raw.decode("utf-8").splitlines()
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        raise PGCDataError(f"{path}:{line}: not UTF-8 text (byte {exc.start}: {exc.reason}); COLMAP writes UTF-8: "
+                           "re-export the model or fix the file's encoding") from None
+
+
 def _text_lines(path: Path):
-    with open(path, encoding="utf-8") as f:
-        for lineno, line in enumerate(f, 1):
-            line = line.strip()
-            if line and not line.startswith("#"):
-                yield lineno, line
+    for lineno, line in enumerate(_read_text(path), 1):
+        line = line.strip()
+        if line and not line.startswith("#"):
+            yield lineno, line
+
+
+def _add_unique(table: dict, key: int, value, path: Path, what: str, where: str = "") -> None:
+    if key in table:
+        raise PGCDataError(f"{where or path}: {what} id {key} appears twice; every {what} needs its own id")
+    table[key] = value
+
+
+def _checked_camera(cam: ColmapCamera, where: str) -> ColmapCamera:
+    """Refuse a camera with a non-positive or huge size, non-finite parameters or a non-positive focal length."""
+    if not (0 < cam.width and 0 < cam.height and cam.width * cam.height <= limits.MAX_IMAGE_PIXELS):
+        raise PGCDataError(f"{where}: image size {cam.width}x{cam.height} must be positive and at most "
+                           f"{limits.MAX_IMAGE_PIXELS} pixels; fix WIDTH HEIGHT")
+    if not np.all(np.isfinite(cam.params)):
+        raise PGCDataError(f"{where}: parameters {cam.params.tolist()} must be finite numbers; fix PARAMS")
+    focal = cam.params[:2] if cam.model in FOCAL_XY else cam.params[:1]
+    if np.any(focal <= 0):
+        raise PGCDataError(f"{where}: focal length {focal.tolist()} must be positive (model {cam.model}); fix the "
+                           "first parameter(s)")
+    return cam
 
 
 def _read_cameras_txt(path: Path) -> dict[int, ColmapCamera]:
@@ -190,15 +245,16 @@ def _read_cameras_txt(path: Path) -> dict[int, ColmapCamera]:
             raise PGCDataError(f"{path}:{lineno}: unknown camera model '{model}'")
         if len(params) != MODEL_IDS[model][1]:
             raise PGCDataError(f"{path}:{lineno}: {model} takes {MODEL_IDS[model][1]} parameters, got {len(params)}")
-        cams[cam_id] = ColmapCamera(cam_id, model, width, height, params)
+        where = f"{path}:{lineno}"
+        _add_unique(cams, cam_id, _checked_camera(ColmapCamera(cam_id, model, width, height, params),
+                                                  f"{where}: camera {cam_id}"), path, "camera", where)
     return cams
 
 
 def _read_images_txt(path: Path) -> dict[int, ColmapImage]:
     """Two lines per image: the pose line and the keypoint line (which may be empty)."""
-    images = {}
-    with open(path, encoding="utf-8") as f:
-        raw = [(n, ln.strip()) for n, ln in enumerate(f, 1) if not ln.startswith("#")]
+    images: dict[int, ColmapImage] = {}
+    raw = [(n, ln.strip()) for n, ln in enumerate(_read_text(path), 1) if not ln.startswith("#")]
     i = 0
     while i < len(raw):
         lineno, line = raw[i]
@@ -219,8 +275,12 @@ def _read_images_txt(path: Path) -> dict[int, ColmapImage]:
         if len(pts) % 3:
             raise PGCDataError(f"{path}:{lineno + 1}: keypoints of image {image_id} are not (X, Y, POINT3D_ID) "
                                "triples")
-        arr = np.array(pts, dtype=np.float64).reshape(-1, 3)
-        images[image_id] = ColmapImage(image_id, q, t, cam_id, name, arr[:, :2], arr[:, 2].astype(np.int64))
+        try:
+            arr = np.array(pts, dtype=np.float64).reshape(-1, 3)
+        except ValueError:
+            raise PGCDataError(f"{path}:{lineno + 1}: keypoints of image {image_id} must be numbers") from None
+        _add_unique(images, image_id, ColmapImage(image_id, q, t, cam_id, name, arr[:, :2],
+                                                  arr[:, 2].astype(np.int64)), path, "image", f"{path}:{lineno}")
         i += 2
     return images
 
@@ -266,6 +326,14 @@ def read_colmap_model(sparse_dir: str | os.PathLike) -> tuple[dict[int, ColmapCa
         if not (np.all(np.isfinite(img.qvec)) and norm > 1e-8):
             raise PGCDataError(f"{images_file}: image {img.id} ('{img.name}') has the quaternion "
                                f"{img.qvec.tolist()}, which is no rotation (zero or non-finite); fix QW QX QY QZ")
+        if abs(norm - 1.0) > QUATERNION_TOLERANCE:
+            raise PGCDataError(f"{images_file}: image {img.id} ('{img.name}') has the quaternion "
+                               f"{img.qvec.tolist()} of norm {norm:.6g}, not a unit quaternion (COLMAP writes unit "
+                               "quaternions; is the line corrupt or are the columns out of order?); fix QW QX QY QZ")
+        parts = Path(img.name).parts
+        if not parts or Path(img.name).is_absolute() or ".." in parts:
+            raise PGCDataError(f"{images_file}: image {img.id} has the name {img.name!r}, which is not a path "
+                               "inside the image folder (absolute or with '..'); fix NAME")
         if not np.all(np.isfinite(img.tvec)):
             raise PGCDataError(f"{images_file}: image {img.id} ('{img.name}') has a non-finite translation "
                                f"{img.tvec.tolist()}; fix TX TY TZ")

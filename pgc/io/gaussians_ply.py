@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from pgc.errors import PGCDataError
+from pgc.io import limits
 from pgc.io.atomic import atomic_open
 from pgc.types import GaussianSet, WorldGaussians
 
@@ -145,6 +146,7 @@ def _parse(path: Path) -> tuple[np.ndarray, int | None]:
     """The ``vertex`` element of a PLY file as a structured array, and the recorded SH degree if any."""
     if not path.is_file():
         raise PGCDataError(f"{path}: file not found")
+    limits.check_file_size(path, limits.MAX_TEXT_BYTES, "PLY file")
     raw = path.read_bytes()
     end = raw.find(b"end_header")
     if not raw.startswith(b"ply") or end < 0:
@@ -165,7 +167,9 @@ def _parse(path: Path) -> tuple[np.ndarray, int | None]:
         elif parts[0] == "element":
             if len(parts) != 3:
                 raise PGCDataError(f"{path}: header line '{line}' must be 'element NAME COUNT'")
-            elements.append((parts[1], _header_int(path, parts[2], line), []))
+            count = limits.check_count(path, f"header line '{line}'", _header_int(path, parts[2], line),
+                                       limits.MAX_ELEMENTS)
+            elements.append((parts[1], count, []))
         elif parts[0] == "property":
             if not elements:
                 raise PGCDataError(f"{path}: property before any element in the header")

@@ -10,11 +10,13 @@ Writes are atomic (see :mod:`pgc.io.atomic`).
 from __future__ import annotations
 
 import os
+import struct
 from pathlib import Path
 
 import numpy as np
 
 from pgc.errors import PGCDataError, PGCPluginError
+from pgc.io import limits
 from pgc.io.atomic import atomic_path
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -54,12 +56,46 @@ def _quantize(values01: np.ndarray, bits: int) -> np.ndarray:
 
 
 def _png_header(path: Path) -> tuple[int, int]:
-    """(bit depth, colour type) from the IHDR chunk of a PNG file."""
+    """(bit depth, colour type) from the IHDR chunk of a PNG file, after checking its size against
+    :data:`pgc.io.limits.MAX_IMAGE_PIXELS` (nothing is decoded before that)."""
     with open(path, "rb") as f:
         head = f.read(33)
     if len(head) < 33 or head[:8] != PNG_SIGNATURE or head[12:16] != b"IHDR":
         raise PGCDataError(f"{path}: not a PNG file (bad signature or header)")
+    width, height = struct.unpack(">II", head[16:24])
+    limits.check_pixels(path, width, height, "PNG header (IHDR) size")
     return head[24], head[25]
+
+
+def _exr_size(path: Path) -> tuple[int, int]:
+    """(width, height) of an EXR file's data window, checked against the pixel limit, from its header."""
+    import OpenEXR
+
+    try:
+        with OpenEXR.File(str(path), header_only=True) as f:
+            (x0, y0), (x1, y1) = f.header()["dataWindow"]
+    except Exception as exc:  # OpenEXR raises plain RuntimeError on bad files
+        raise _bad_exr(path, exc) from None
+    width, height = int(x1) - int(x0) + 1, int(y1) - int(y0) + 1
+    limits.check_pixels(path, width, height, "EXR header dataWindow")
+    return width, height
+
+
+def _pil_open(path: Path):
+    """``PIL.Image.open`` whose size is checked against the pixel limit before anything is decoded."""
+    from PIL import Image
+
+    try:
+        im = Image.open(path)
+    except Image.DecompressionBombError as exc:
+        raise limits.fail(path, "image size", f"more pixels than PGC reads (the limit is {limits.MAX_IMAGE_PIXELS}; "
+                                              f"{exc})") from None
+    try:
+        limits.check_pixels(path, *im.size)
+    except PGCDataError:
+        im.close()
+        raise
+    return im
 
 
 def _cv2():
@@ -80,10 +116,8 @@ def _read_png_codes(path: Path) -> tuple[np.ndarray, int]:
             raise PGCDataError(f"{path}: cannot decode PNG")
         arr = arr[..., [2, 1, 0, 3][: arr.shape[2]]]
         return np.ascontiguousarray(arr), 16
-    from PIL import Image
-
     try:
-        with Image.open(path) as im:
+        with _pil_open(path) as im:
             if im.mode == "P":
                 im = im.convert("RGBA" if "transparency" in im.info else "RGB")
             elif im.mode == "1":
@@ -117,6 +151,7 @@ def read_exr(path: str | os.PathLike) -> np.ndarray:
 
     path = Path(path)
     _require_file(path)
+    _exr_size(path)
     try:
         with OpenEXR.File(str(path), separate_channels=True) as f:
             channels = {name: np.asarray(ch.pixels, dtype=np.float32) for name, ch in f.channels().items()}
@@ -129,6 +164,25 @@ def read_exr(path: str | os.PathLike) -> np.ndarray:
         raise PGCDataError(f"{path}: EXR channels {sorted(channels)} are not a subset of R, G, B, A "
                            "(or one single channel)")
     return np.stack([channels[c] for c in order], axis=-1)
+
+
+def read_envmap(path: str | os.PathLike) -> np.ndarray:
+    """The (H, 2H, 3) float32 radiance of the environment map EXR at ``path`` (latitude-longitude, +Y up; an
+    alpha channel dropped), or a :class:`PGCDataError` naming the file and its problem: its shape, non-finite
+    values (with the count) or negative radiance."""
+    from pgc.checks import require_finite
+
+    env = read_exr(path)
+    if env.ndim != 3 or env.shape[2] not in (3, 4) or env.shape[1] != 2 * env.shape[0] or env.shape[0] == 0:
+        raise PGCDataError(f"{path}: an environment map must be a latitude-longitude RGB image of H x 2H pixels, "
+                           f"got shape {env.shape}; re-export it as an equirectangular RGB EXR")
+    env = env[..., :3]
+    require_finite(str(path), "the environment map", env,
+                   "replace them (clamp or inpaint those pixels) and re-export the file")
+    if (env < 0).any():
+        raise PGCDataError(f"{path}: {int((env < 0).sum())} negative radiance values in the environment map; "
+                           "radiance must be >= 0")
+    return np.ascontiguousarray(env)
 
 
 def _bad_exr(path: Path, exc: Exception) -> PGCDataError:
@@ -183,7 +237,7 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
         from PIL import Image, UnidentifiedImageError
 
         try:
-            with Image.open(path) as im:
+            with _pil_open(path) as im:
                 a = srgb_to_linear(np.asarray(im.convert("RGB"), dtype=np.float64) / 255.0)
         except (UnidentifiedImageError, OSError, ValueError) as exc:
             raise PGCDataError(f"{path}: cannot decode the image ({exc}); re-export it") from None
@@ -280,19 +334,12 @@ def image_size(path: str | os.PathLike) -> tuple[int, int]:
     path = Path(path)
     _require_file(path)
     if _suffix(path) in EXR_SUFFIXES:
-        import OpenEXR
-
-        try:
-            with OpenEXR.File(str(path), header_only=True) as f:
-                (x0, y0), (x1, y1) = f.header()["dataWindow"]
-        except Exception as exc:  # OpenEXR raises plain RuntimeError on bad files
-            raise _bad_exr(path, exc) from None
-        return int(x1 - x0 + 1), int(y1 - y0 + 1)
-    from PIL import Image
-
+        return _exr_size(path)
     try:
-        with Image.open(path) as im:
+        with _pil_open(path) as im:
             return im.size
+    except PGCDataError:
+        raise
     except (OSError, ValueError) as exc:
         raise PGCDataError(f"{path}: cannot read image ({exc})") from exc
 

@@ -65,7 +65,7 @@ def _read_holder(fd: int) -> str:
     try:
         info = json.loads(os.pread(fd, 4096, 0).decode())
         return f"pid {int(info['pid'])} ({info['command']}, since {info['since_utc']})"
-    except (ValueError, KeyError, TypeError, OSError):
+    except (ValueError, KeyError, TypeError, OSError, RecursionError):
         return "another process"
 
 

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from pgc.errors import PGCDataError
+from pgc.io import limits
 from pgc.io.atomic import atomic_open, atomic_path
 from pgc.types import Mesh
 
@@ -74,6 +75,7 @@ def read_mesh(path: str | os.PathLike, name: str | None = None) -> Mesh:
     suffix = path.suffix.lower()
     if suffix not in MESH_SUFFIXES:
         raise PGCDataError(f"{path}: unsupported mesh type '{suffix}'; use one of {', '.join(MESH_SUFFIXES)}")
+    limits.check_file_size(path, limits.MAX_TEXT_BYTES, "mesh file")
     try:
         if suffix == ".obj":
             return _read_obj(path, name)
@@ -107,7 +109,10 @@ def _read_trimesh(path: Path, suffix: str, name: str) -> Mesh:
         return Mesh(vertices, faces, face_labels=labels, name=name)
     uv = getattr(loaded.visual, "uv", None)
     if _sidecar(path).is_file():
-        labels = np.load(_sidecar(path), allow_pickle=False)
+        try:
+            labels = np.load(_sidecar(path), allow_pickle=False)
+        except (ValueError, OSError, EOFError) as exc:
+            raise PGCDataError(f"{_sidecar(path)}: not a readable .npy array of face labels ({exc})") from None
         if labels.shape != (len(faces),):
             raise PGCDataError(f"{_sidecar(path)}: {labels.shape[0]} labels for {len(faces)} faces")
     # weld the vertices that the format split at UV seams

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from pgc.errors import PGCDataError
+from pgc.io import limits
 from pgc.io.mesh import read_mesh
 from pgc.types import BodyMotion
 
@@ -40,6 +41,7 @@ def load_motion(path: str | Path, fps: float | None = None, name: str | None = N
         files = sorted(path.glob("*.obj"), key=_natural_key)
         if not files:
             raise PGCDataError(f"{path}: no .obj files; a motion folder holds one OBJ per frame")
+        limits.check_count(path, "frames", len(files), limits.MAX_MOTION_FRAMES, "OBJ frames")
         frames, faces = [], None
         for f in files:
             mesh = read_mesh(f)
@@ -49,6 +51,9 @@ def load_motion(path: str | Path, fps: float | None = None, name: str | None = N
             elif v.shape[0] != frames[0].shape[0]:
                 raise PGCDataError(f"{f}: {v.shape[0]} vertices, but {files[0].name} has {frames[0].shape[0]}; "
                                    "every frame must share one topology")
+            else:
+                limits.check_count(path, "frames x vertices", len(files) * v.shape[0], limits.MAX_ELEMENTS,
+                                   "positions")
             frames.append(v)
         stacked = np.stack(frames)
         if not np.all(np.isfinite(stacked)):
@@ -62,6 +67,7 @@ def load_motion(path: str | Path, fps: float | None = None, name: str | None = N
         raise PGCDataError(f"{path}: not a readable .npz archive (not a zip file); save the motion with "
                            "numpy.savez(path, vertices=..., faces=..., fps=...)")
     try:
+        _check_npz_shapes(path)
         with np.load(path, allow_pickle=False) as data:
             for key in ("vertices", "faces"):
                 if key not in data:
@@ -99,6 +105,23 @@ def load_motion(path: str | Path, fps: float | None = None, name: str | None = N
                                f"{np.shape(raw_fps)}")
         fps = float(np.asarray(raw_fps).reshape(()))
     return BodyMotion(vertices.astype(np.float64), faces.astype(np.int64), check_fps(fps, f"{path}: 'fps'"), name)
+
+
+def _check_npz_shapes(path: Path) -> None:
+    """Refuse, from the arrays' headers (nothing loaded), a motion larger than :mod:`pgc.io.limits` allows."""
+    with zipfile.ZipFile(path) as zf:
+        for info in zf.infolist():
+            key = info.filename.removesuffix(".npy")
+            if key not in ("vertices", "faces"):
+                continue
+            with zf.open(info) as f:
+                version = np.lib.format.read_magic(f)
+                read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) \
+                    else np.lib.format.read_array_header_2_0
+                shape = read_header(f)[0]
+            if key == "vertices" and len(shape) == 3:
+                limits.check_count(path, "'vertices' frames", shape[0], limits.MAX_MOTION_FRAMES, "frames")
+            limits.check_count(path, f"'{key}' {shape}", math.prod(shape), 3 * limits.MAX_ELEMENTS, "values")
 
 
 def check_fps(fps: float, where: str) -> float:

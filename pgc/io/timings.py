@@ -8,11 +8,12 @@ into it).
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
+from pgc.errors import PGCDataError
 from pgc.io.atomic import write_json
+from pgc.io.limits import read_json
 
 TIMINGS = "timings.json"
 
@@ -51,7 +52,7 @@ def read_timings(folder: str | Path) -> dict[str, Any]:
     """``folder/timings.json``, or {} when the folder has none or it is unreadable (timings are informative)."""
     path = Path(folder) / TIMINGS
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        data = read_json(path, TIMINGS)
+    except (OSError, PGCDataError):
         return {}
     return data if isinstance(data, dict) else {}

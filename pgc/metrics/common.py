@@ -1,10 +1,33 @@
-"""Helpers shared by the metrics: display encoding, masked means, the mask's bounding box."""
+"""Helpers shared by the metrics: input checks, display encoding, masked means, the mask's bounding box."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from pgc.checks import require_finite, require_min_size
 from pgc.errors import PGCDataError
+
+
+def check_images(metric: str, pred: np.ndarray, target: np.ndarray, mask: np.ndarray | None = None,
+                 min_size: int = 1, why: str = "", rgb: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """The checks every metric makes before measuring, so that none returns NaN: ``pred`` and ``target`` of one
+    shape, (H, W, 3) (or (H, W[, C]) when not ``rgb``), finite, at least ``min_size`` px a side (``why``: the
+    window that needs it); ``mask`` (H, W) finite. A comparison that cannot be made is refused, not scored."""
+    pred, target = np.asarray(pred), np.asarray(target)
+    if pred.shape != target.shape:
+        raise PGCDataError(f"{metric}: pred shape {pred.shape} != target shape {target.shape}; compare images of "
+                           "one size")
+    if (pred.ndim != 3 or pred.shape[2] != 3) if rgb else pred.ndim not in (2, 3):
+        raise PGCDataError(f"{metric}: images must be {'(H, W, 3)' if rgb else '(H, W) or (H, W, C)'}, got shape "
+                           f"{pred.shape}")
+    require_finite(metric, "pred", pred)
+    require_finite(metric, "target", target)
+    if mask is not None:
+        if np.shape(mask) != pred.shape[:2]:
+            raise PGCDataError(f"{metric}: mask shape {np.shape(mask)} != image size {pred.shape[:2]}")
+        require_finite(metric, "mask", mask)
+    require_min_size(metric, pred.shape[0], pred.shape[1], min_size, why or "one pixel")
+    return pred, target
 
 
 def display_255(linear: np.ndarray) -> np.ndarray:

@@ -16,11 +16,13 @@ from functools import lru_cache
 
 import numpy as np
 
-from pgc.metrics.common import display_255, require_nonempty
+from pgc.metrics.common import check_images, display_255, require_nonempty
 
 T1, T2, T3, T4, LAMBDA = 0.85, 160.0, 200.0, 200.0, 0.03
 SCALES, ORIENTATIONS, MIN_WAVELENGTH, MULT, SIGMA_ON_F, D_THETA_ON_SIGMA, NOISE_K = 4, 4, 6.0, 2.0, 0.55, 1.2, 2.0
 EPSILON = 1e-4
+MIN_SIZE = int(MIN_WAVELENGTH)
+"""Smallest image side (px): one period of the finest log-Gabor filter (a 1 px image gives 0 / 0)."""
 _YIQ = np.array([[0.299, 0.587, 0.114], [0.596, -0.274, -0.322], [0.211, -0.523, 0.312]])
 _SCHARR_X = np.array([[3.0, 0.0, -3.0], [10.0, 0.0, -10.0], [3.0, 0.0, -3.0]]) / 16.0
 
@@ -140,8 +142,11 @@ def fsim(pred: np.ndarray, target: np.ndarray, mask: np.ndarray | None = None,
 
     1 for identical images, lower for worse; with ``mask`` (H, W) both sums are weighted by the mask
     averaged and subsampled like the images. Images without any phase congruency (flat) give the plain mean
-    of the similarity map (the reference's 0 / 0). An all-zero mask is an error, as in every metric.
+    of the similarity map (the reference's 0 / 0). An all-zero mask is an error, as in every metric; so are
+    NaN/Inf inputs and images under :data:`MIN_SIZE` px a side.
     """
+    pred, target = check_images("fsim", pred, target, mask, MIN_SIZE,
+                                f"one {MIN_SIZE} px period of the finest log-Gabor filter")
     if mask is not None:
         require_nonempty(mask, "fsim")
     f = downsample_factor(*pred.shape[:2])

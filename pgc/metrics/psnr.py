@@ -6,7 +6,7 @@ from typing import Literal
 
 import numpy as np
 
-from pgc.metrics.common import masked_mean
+from pgc.metrics.common import check_images, masked_mean
 
 
 def psnr(pred: np.ndarray, target: np.ndarray, mask: np.ndarray | None = None,
@@ -14,7 +14,9 @@ def psnr(pred: np.ndarray, target: np.ndarray, mask: np.ndarray | None = None,
     """PSNR in dB of (H, W, C) linear images; compared as sRGB-encoded values unless ``color_space='linear'``.
 
     With ``mask`` the MSE is the mask-weighted mean over pixels and channels. Identical images give +inf.
+    NaN/Inf inputs, empty images and mismatched shapes are refused (:func:`pgc.metrics.common.check_images`).
     """
+    pred, target = check_images("psnr", pred, target, mask, rgb=False)
     if color_space == "srgb":
         from pgc.io.images import linear_to_srgb
 

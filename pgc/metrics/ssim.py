@@ -10,8 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pgc.errors import PGCDataError
-from pgc.metrics.common import masked_mean
+from pgc.metrics.common import check_images, masked_mean
 
 SIGMA = 1.5
 TRUNCATE = 3.5
@@ -35,12 +34,11 @@ def ssim_map(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 def ssim(pred: np.ndarray, target: np.ndarray, mask: np.ndarray | None = None) -> float:
     """Mean SSIM of (H, W, 3) linear images, compared as sRGB; with ``mask`` the mask-weighted mean of the map
-    (both cropped by the 5 px border). Images need at least 11 px a side."""
+    (both cropped by the 5 px border). Images need at least 11 px a side; NaN/Inf are refused."""
     from pgc.io.images import linear_to_srgb
 
-    if min(pred.shape[:2]) < 2 * BORDER + 1:
-        raise PGCDataError(f"ssim: images of {pred.shape[0]}x{pred.shape[1]} px are smaller than the "
-                           f"{2 * BORDER + 1} px window")
+    pred, target = check_images("ssim", pred, target, mask, 2 * BORDER + 1,
+                                f"the {2 * BORDER + 1} x {2 * BORDER + 1} px Gaussian window")
     inner = (slice(BORDER, -BORDER), slice(BORDER, -BORDER))
     values = ssim_map(linear_to_srgb(pred), linear_to_srgb(target))[inner]
     return masked_mean(values, None if mask is None else np.asarray(mask)[inner], "ssim")

@@ -10,7 +10,6 @@ Run folder: ``run.json`` (asset, motion, fps, simulator, figures), ``garment.npz
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +18,7 @@ from pgc.config import RunConfig
 from pgc.errors import PGCDataError
 from pgc.events import Reporter
 from pgc.io.atomic import write_json
+from pgc.io.limits import read_json
 from pgc.io.timings import split_timings, write_timings
 from pgc.pipeline.cache import StageCache, array_key, asset_key, content_key
 from pgc.pipeline.stage_io import save_npz
@@ -91,4 +91,4 @@ def read_run(run_dir: str | Path) -> dict:
     meta = run_dir / "run.json"
     if not meta.is_file():
         raise PGCDataError(f"{run_dir}: not a run folder (no run.json); make one with 'pgc animate'")
-    return json.loads(meta.read_text())
+    return read_json(meta, "run.json")

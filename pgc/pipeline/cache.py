@@ -20,7 +20,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Generic, TypeVar
 
+from pgc.errors import PGCDataError
 from pgc.io.atomic import process_alive, write_json
+from pgc.io.limits import read_json
 
 T = TypeVar("T")
 CACHE_FORMAT = 2
@@ -43,7 +45,7 @@ views its splat fit held out; not the run configuration or the timings it also r
 def asset_key(asset_dir: str | Path) -> str:
     """Content key of an asset folder (:data:`ASSET_KEY_FIELDS` of its ``manifest.json``): the same asset
     files give the same key whichever settings of later stages the reconstruct run recorded."""
-    manifest = json.loads((Path(asset_dir) / "manifest.json").read_text())
+    manifest = read_json(Path(asset_dir) / "manifest.json", "asset manifest")
     return content_key("asset", {k: manifest.get(k) for k in ASSET_KEY_FIELDS})
 
 
@@ -104,8 +106,8 @@ class StageCache:
         if not meta.is_file():
             return None
         try:
-            data = json.loads(meta.read_text(encoding="utf-8"))
-        except (json.JSONDecodeError, UnicodeDecodeError):
+            data = read_json(meta, STAGE_META)
+        except PGCDataError:  # malformed or over the limits: the stage is recomputed
             return None
         return data if isinstance(data, dict) else None
 

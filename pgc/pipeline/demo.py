@@ -34,6 +34,27 @@ def demo_config(preset: str, user_config: str | Path | None = None, registry=Non
     return config_mod.resolve(data, registry, source=str(user_config or preset_file))
 
 
+SYNTH_KEY_FILE = ".pgc-synth-key"
+"""Written into a generated capture folder: the key of what generated it (:func:`synthetic_capture`)."""
+
+
+def synthetic_capture(folder: Path, preset: str, seed: int, cfg: config_mod.RunConfig,
+                      reporter: Reporter | None = None) -> bool:
+    """Generate the synthetic capture of ``preset`` and ``seed`` into ``folder`` with ``cfg``'s scene renderer,
+    unless the folder already holds it: its key (the preset's settings, the seed and the scene renderer's
+    implementation, options and version) is kept in ``folder/.pgc-synth-key``. Returns whether it generated."""
+    from pgc.synth.generate import generate, get_preset
+    from pgc.synth.render import scene_renderer
+
+    key = content_key("synth", asdict(get_preset(preset)), seed, cfg.role_key("scene_renderer"))
+    marker = Path(folder) / SYNTH_KEY_FILE
+    if marker.is_file() and marker.read_text() == key:
+        return False
+    generate(folder, preset=preset, seed=seed, reporter=reporter, renderer=scene_renderer(cfg))
+    marker.write_text(key)
+    return True
+
+
 def run_demo(out: str | Path, preset: str = "default", user_config: str | Path | None = None,
              motions: tuple[str, ...] = PAPER_MOTIONS, seed: int = 0, reporter: Reporter | None = None,
              registry=None) -> dict[str, Any]:
@@ -43,11 +64,11 @@ def run_demo(out: str | Path, preset: str = "default", user_config: str | Path |
     from pgc.pipeline.reconstruct import reconstruct
     from pgc.pipeline.render import choose_kernel, render_run
     from pgc.pipeline.report import write_report
-    from pgc.synth.generate import generate, get_preset
 
     reporter = reporter or Reporter.silent()
     out = Path(out)
     cfg = demo_config(preset, user_config, registry)
+    cfg.check_implementations()
     timings: dict[str, float] = {}
 
     def timed(name: str, fn):
@@ -57,11 +78,9 @@ def run_demo(out: str | Path, preset: str = "default", user_config: str | Path |
         return value
 
     capture = out / "capture"
-    synth_key = content_key("synth", asdict(get_preset(preset)), seed)
-    marker = capture / ".pgc-synth-key"
-    if not (marker.is_file() and marker.read_text() == synth_key):
-        timed("synth", lambda: generate(capture, preset=preset, seed=seed, reporter=reporter))
-        marker.write_text(synth_key)
+    start = time.perf_counter()
+    if synthetic_capture(capture, preset, seed, cfg, reporter):
+        timings["synth"] = time.perf_counter() - start
     timed("reconstruct", lambda: reconstruct(capture, out / "asset", cfg, reporter))
     results: dict[str, Any] = {}
     decisions: list = []

@@ -10,7 +10,6 @@ alpha (both over black).
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +19,7 @@ from pgc.config import RunConfig
 from pgc.errors import PGCDataError
 from pgc.events import Reporter
 from pgc.io.atomic import write_json
+from pgc.io.limits import read_json
 from pgc.pipeline.animate import read_run
 from pgc.pipeline.stage_io import save_npz
 
@@ -46,9 +46,9 @@ def rendered_frames(run_dir: Path) -> tuple[dict[str, Any], list[int]]:
     if not meta_path.is_file():
         raise PGCDataError(f"{run_dir}: no rendered frames (render/render.json); run 'pgc render {run_dir}' first")
     try:
-        meta = json.loads(meta_path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise PGCDataError(f"{meta_path}: malformed JSON ({exc}); {fix}") from None
+        meta = read_json(meta_path, "render.json")
+    except PGCDataError as exc:
+        raise PGCDataError(f"{exc}; {fix}") from None
     frames = meta.get("frames") if isinstance(meta, dict) else None
     if not isinstance(frames, list) or not frames or not all(isinstance(t, int) and t >= 0 for t in frames):
         raise PGCDataError(f"{meta_path}: field 'frames' must be a non-empty list of frame numbers; {fix}")
@@ -61,29 +61,36 @@ def rendered_frames(run_dir: Path) -> tuple[dict[str, Any], list[int]]:
     recorded = meta.get("inputs")
     if recorded is None and (run_dir / "render" / RENDER_INPUTS).is_file():
         try:
-            recorded = json.loads((run_dir / "render" / RENDER_INPUTS).read_text(encoding="utf-8"))
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise PGCDataError(f"{run_dir / 'render' / RENDER_INPUTS}: malformed JSON ({exc}); {fix}") from None
+            recorded = read_json(run_dir / "render" / RENDER_INPUTS, RENDER_INPUTS)
+        except PGCDataError as exc:
+            raise PGCDataError(f"{exc}; {fix}") from None
     if recorded is not None and recorded != render_inputs(run_dir):
         raise PGCDataError(f"{run_dir / 'render'}: the frames were rendered from an earlier simulation of this run "
                            f"(garment.npz/body.npz changed since, e.g. re-animated with another motion); {fix}")
     return meta, list(frames)
 
 
+def ground_truth_key(run_dir: Path, capture_dir: Path, camera_names: list[str], cfg: RunConfig) -> str:
+    """The cache key of a run's ground-truth renders: the run's simulation, the cameras, the capture's scene and
+    the configuration's scene renderer (implementation, options, version)."""
+    from pgc.pipeline.cache import content_key, file_key
+
+    return content_key("gt", file_key(run_dir / "garment.npz"), file_key(run_dir / "body.npz"), camera_names,
+                       file_key(capture_dir / "ground_truth" / "scene.json"), cfg.role_key("scene_renderer"))
+
+
 def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], camera_names: list[str],
-                           spp: int, reporter: Reporter) -> list[dict[str, np.ndarray]]:
-    """Ground-truth renders of the run's frames (cached in ``RUN/gt/<key of the run's motion and the capture>``)."""
+                           spp: int, cfg: RunConfig, reporter: Reporter) -> list[dict[str, np.ndarray]]:
+    """Ground-truth renders of the run's frames by ``cfg``'s scene renderer (cached in
+    ``RUN/gt/<ground_truth_key>``)."""
     from pgc.io.asset import read_asset
     from pgc.io.capture import read_capture
     from pgc.pipeline.transfer import embed, place
     from pgc.synth.frames import render_frames
     from pgc.synth.ground_truth import read_ground_truth
+    from pgc.synth.render import scene_renderer
 
-    from pgc.pipeline.cache import content_key, file_key
-
-    key = content_key("gt", file_key(run_dir / "garment.npz"), file_key(run_dir / "body.npz"), camera_names,
-                      file_key(capture_dir / "ground_truth" / "scene.json"))
-    cache = run_dir / "gt" / key  # a new simulation or capture is a new folder: never a stale frame
+    cache = run_dir / "gt" / ground_truth_key(run_dir, capture_dir, camera_names, cfg)  # never a stale frame
     paths = [cache / f"frame_{t:04d}_spp{spp}.npz" for t in frames]
     if all(p.is_file() for p in paths):
         return [dict(np.load(p)) for p in paths]
@@ -102,7 +109,8 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
                            f"({len(garment)} garment, {len(body)} body)")
     embedding = embed(gt.garment.vertices, asset.garment)
     gt_garment = np.stack([place(embedding, asset.garment, garment[t]) for t in frames])
-    out = render_frames(gt, gt_garment, body[frames], cameras, spp=spp, reporter=reporter)
+    out = render_frames(gt, gt_garment, body[frames], cameras, spp=spp, reporter=reporter,
+                        renderer=scene_renderer(cfg))
     for p, frame in zip(paths, out):
         save_npz(p, **frame)
     return out
@@ -114,18 +122,20 @@ def evaluate_run(run_dir: str | Path, gt: str | Path, cfg: RunConfig, reporter: 
     reporter = reporter or Reporter.silent()
     run_dir, gt = Path(run_dir), Path(gt)
     meta, frames = rendered_frames(run_dir)
+    fix = f"run 'pgc render {run_dir}' (again)"
+    for t in frames:  # before the ground truth is rendered
+        check_frame_arrays(run_dir / "render" / f"frame_{t:04d}.npz", fix)
     metrics = cfg.roles["metric"].create_all()
     if (gt / "ground_truth").is_dir() or (gt / "scene.json").is_file():
         truth = synthetic_ground_truth(run_dir, gt if (gt / "ground_truth").is_dir() else gt.parent, frames,
-                                       meta["cameras"], cfg.stage("eval").gt_spp, reporter)
+                                       meta["cameras"], cfg.stage("eval").gt_spp, cfg, reporter)
         targets = [(f["color"] * f["garment_mask"][..., None], f["garment_mask"]) for f in truth]
     else:
         targets = [_image_folder_frame(gt, t, meta["cameras"]) for t in frames]
     per_frame: dict[str, list[dict[str, float]]] = {k: [] for k in VARIANTS}
     with reporter.stage("eval", total=len(frames)) as st:
         for i, t in enumerate(frames):
-            with np.load(run_dir / "render" / f"frame_{t:04d}.npz") as z:  # read each array once, not per metric
-                pred = {k: z[k] for k in z.files}
+            pred = read_frame(run_dir / "render" / f"frame_{t:04d}.npz", fix)
             target, coverage = targets[i]
             if target.shape != pred["hybrid"].shape:
                 raise PGCDataError(f"frame {t}: ground truth {target.shape} and render {pred['hybrid'].shape} "
@@ -146,6 +156,34 @@ def evaluate_run(run_dir: str | Path, gt: str | Path, cfg: RunConfig, reporter: 
         result[key]["per_frame"] = rows
     write_json(Path(out) if out else run_dir / "metrics.json", result)
     return result
+
+
+FRAME_ARRAYS = ("hybrid", "near", "pbr", "alpha", "pbr_alpha")
+"""The arrays every rendered frame file holds for evaluation (the layers of :data:`VARIANTS` and their alphas)."""
+
+
+def check_frame_arrays(path: Path, fix: str) -> list[str]:
+    """The array names of the rendered frame file ``path`` (read from its index, no data), once it is a
+    readable archive holding every one of :data:`FRAME_ARRAYS`; else an error naming the file and the array."""
+    import zipfile
+
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            names = list(z.files)
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise PGCDataError(f"{path}: not a readable rendered frame ({type(exc).__name__}: {exc}); {fix}") from None
+    absent = [k for k in FRAME_ARRAYS if k not in names]
+    if absent:
+        raise PGCDataError(f"{path}: the rendered frame has no array {', '.join(repr(k) for k in absent)} "
+                           f"(it holds {', '.join(names) or 'none'}); {fix}")
+    return names
+
+
+def read_frame(path: Path, fix: str) -> dict[str, np.ndarray]:
+    """Every array of the rendered frame file ``path`` (each read once), checked by :func:`check_frame_arrays`."""
+    check_frame_arrays(path, fix)
+    with np.load(path, allow_pickle=False) as z:
+        return {k: z[k] for k in z.files}
 
 
 def layer_alpha(layer: str, frame) -> str:

@@ -9,7 +9,6 @@ Gaussians fitted on the full mesh, then only the garment's kept) ->
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
@@ -19,6 +18,7 @@ from pgc.config import RunConfig
 from pgc.events import Reporter
 from pgc.geometry.garment import garment_selection
 from pgc.io.atomic import write_json
+from pgc.io.limits import read_json
 from pgc.pipeline.cache import StageCache, content_key, file_key
 from pgc.pipeline.garment import body_occluder, garment_gaussians, with_occluder
 from pgc.pipeline.settings_garment import GarmentSettings
@@ -101,7 +101,7 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
         return (fit.gaussians, fit.heldout_views), fit.figures
 
     def load_splats(folder: Path):
-        return load_gaussians(folder / "gaussians_full.npz"), json.loads((folder / "heldout_views.json").read_text())
+        return load_gaussians(folder / "gaussians_full.npz"), read_json(folder / "heldout_views.json")
 
     full_gaussians, heldout_views = timed("fit_splats", lambda: cache.run(
         "fit_splats", splat_key, compute_splats, load_splats, CODE_VERSIONS["fit_splats"])).value
@@ -147,7 +147,7 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
         return (fit.material, fit.light), fit.figures
 
     def load_material(folder: Path):
-        d = json.loads((folder / "material.json").read_text())
+        d = read_json(folder / "material.json")
         return Material(d["brdf"], d["params"], texture.value), Light(np.asarray(d["light"]["radiance"]))
 
     material = timed("material", lambda: cache.run("material", mat_key, compute_material, load_material,

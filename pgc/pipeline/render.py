@@ -18,6 +18,7 @@ from typing import Any, Callable
 import numpy as np
 
 from pgc.config import RunConfig
+from pgc.errors import PGCDataError
 from pgc.events import Reporter
 from pgc.geometry.raster import rasterize
 from pgc.io.atomic import write_json
@@ -170,10 +171,11 @@ def choose_kernel(renderer: HybridRenderer, capture, cfg: RunConfig) -> KernelDe
 def envmap_light(run_dir: str | Path, path: str | Path) -> Light:
     """An environment-map light (EXR, latitude-longitude, +Y up) scaled by the asset's fitted radiance."""
     from pgc.io.asset import read_asset
-    from pgc.io.images import read_exr
+    from pgc.io.images import read_envmap
 
+    envmap = read_envmap(path)
     asset = read_asset(read_run(run_dir)["asset"])
-    return Light(asset.light.radiance, envmap=read_exr(path))
+    return Light(asset.light.radiance, envmap=envmap)
 
 
 def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
@@ -194,8 +196,6 @@ def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
     asset = read_asset(meta["asset"])
     capture = read_capture(meta["capture"]) if meta.get("capture") else None
     if capture is None:
-        from pgc.errors import PGCDataError
-
         raise PGCDataError(f"{run_dir}: the run records no capture; its cameras are needed to render")
     settings = cfg.stage("render")
     renderer = HybridRenderer(asset, cfg)

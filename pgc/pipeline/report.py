@@ -21,6 +21,7 @@ import numpy as np
 
 from pgc.errors import PGCDataError
 from pgc.io.atomic import write_text
+from pgc.io.limits import read_json
 from pgc.pipeline import report_figures as figs
 from pgc.pipeline.evaluate import VARIANTS
 
@@ -51,7 +52,7 @@ def read_run_view(folder: Path, motion: str | None = None) -> RunView:
     run = read_run(folder)
     render, frames = rendered_frames(folder)
     metrics_path = folder / "metrics.json"
-    metrics = json.loads(metrics_path.read_text()) if metrics_path.is_file() else None
+    metrics = read_json(metrics_path, "metrics.json") if metrics_path.is_file() else None
     return RunView(motion or str(run.get("motion", folder.name)), folder, render, run, metrics, frames)
 
 
@@ -233,9 +234,9 @@ def _bench_records(bench: Path | None) -> list[dict[str, Any]]:
     if not path.is_file():
         raise PGCDataError(f"{bench}: no bench.json; make one with 'pgc bench --out DIR' and pass that DIR")
     try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise PGCDataError(f"{path}: malformed JSON ({exc}); rerun 'pgc bench'") from exc
+        data = read_json(path, "bench.json")
+    except PGCDataError as exc:
+        raise PGCDataError(f"{exc}; rerun 'pgc bench'") from None
     records = data.get("records", data) if isinstance(data, dict) else data
     if not isinstance(records, list):
         raise PGCDataError(f"{path}: expected a list of bench records (or an object with 'records')")
@@ -363,7 +364,7 @@ def report_folder(folder: str | Path, bench: str | Path | None = None) -> dict[s
     if not (folder / "runs").is_dir():
         raise PGCDataError(f"{folder}: neither a run folder (no run.json) nor a demo folder (no runs/); give the "
                            "folder written by 'pgc demo --out' or 'pgc animate'")
-    summary = json.loads(metrics.read_text()) if metrics.is_file() else {}
+    summary = read_json(metrics, "metrics.json") if metrics.is_file() else {}
     runs = sorted(p for p in (folder / "runs").iterdir() if (p / "render" / "render.json").is_file())
     order = list(summary.get("motions", {}))
     runs.sort(key=lambda p: order.index(p.name) if p.name in order else len(order))

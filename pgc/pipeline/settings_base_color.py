@@ -1,13 +1,11 @@
 """Options of the base-colour texture stage."""
 
-from pydantic import Field
-
-from pgc.options import Options
+from pgc.options import Options, count
 
 
 class BaseColorSettings(Options):
-    texture_size: int = Field(512, ge=16, le=8192)
+    texture_size: int = count(512, 16, 8192)
     """Side of the square albedo texture (texels)."""
-    num_views: int = Field(10, ge=1)
+    num_views: int = count(10, 1, 10_000)
     """Views merged into the texture (paper: 10), chosen greedily for coverage."""
 

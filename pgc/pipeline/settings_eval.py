@@ -1,10 +1,8 @@
 """Options of the ``eval`` stage (metrics of every rendered variant against ground truth)."""
 
-from pydantic import Field
-
-from pgc.options import Options
+from pgc.options import Options, count
 
 
 class EvalSettings(Options):
-    gt_spp: int = Field(64, ge=1, description="path-tracing samples of the ground-truth renders")
+    gt_spp: int = count(64, 1, 65536, "path-tracing samples of the ground-truth renders")
 

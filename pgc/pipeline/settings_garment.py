@@ -3,17 +3,14 @@ domain) cut from the reconstructor's labelled full-body mesh, with its own UV at
 
 from __future__ import annotations
 
-from pydantic import Field
-
-from pgc.options import Options
+from pgc.options import Options, count
 
 
 class GarmentSettings(Options):
     """Garment sub-mesh extraction (:func:`pgc.geometry.finish.extract_garment`)."""
 
-    min_island_faces: int = Field(50, ge=0, description="label islands with fewer faces are absorbed by "
-                                                         "their surroundings before extraction")
-    uv_resolution: int = Field(1024, ge=64, le=16384, description="texture size the garment's own UV "
-                                                                  "atlas is packed for (px)")
-    uv_padding: int = Field(2, ge=0, le=64, description="texels between the garment's UV charts")
+    min_island_faces: int = count(50, 0, 10_000_000, "label islands with fewer faces are absorbed by their "
+                                                      "surroundings before extraction")
+    uv_resolution: int = count(1024, 64, 16384, "texture size the garment's own UV atlas is packed for (px)")
+    uv_padding: int = count(2, 0, 64, "texels between the garment's UV charts")
 

@@ -3,7 +3,7 @@
 from pydantic import Field
 
 from pgc.filtering.auto import KernelSelection
-from pgc.options import Options
+from pgc.options import Options, count
 
 
 class RenderSettings(Options):
@@ -13,10 +13,10 @@ class RenderSettings(Options):
     paper's rule). On the knit scene it picks 11 px (novel-pose LPIPS 0.183 against 0.193 for the error rule's
     5 px), on the default scene 7 px, on the cotton scene 5 px (docs/pipeline.md). Without the LPIPS plugin
     among the run's metrics the default falls back to mode 'error'."""
-    views: int = Field(4, ge=1, description="capture cameras used for novel frames (evenly spread)")
-    frame_stride: int = Field(10, ge=1, description="render every n-th simulated frame")
-    texture_size: int = Field(256, ge=16, le=4096, description="far-field texture T_t resolution (texels)")
-    kernel_views: int = Field(4, ge=1, description=(
+    views: int = count(4, 1, 10_000, "capture cameras used for novel frames (evenly spread)")
+    frame_stride: int = count(10, 1, 100_000, "render every n-th simulated frame")
+    texture_size: int = count(256, 16, 4096, "far-field texture T_t resolution (texels)")
+    kernel_views: int = count(4, 1, 10_000, (
         "capture views the kernel (and an auto far field) is chosen on: those the splat fit held out, if recorded"))
     far_source: str = Field("mesh", pattern="^(auto|splats|mesh)$", description=(
         "the far field S_t: 'splats' = the Gaussians coloured by the texture-space PBR radiance (the paper), "

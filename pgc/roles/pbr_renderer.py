@@ -10,22 +10,33 @@ Contract
   ``occluder`` (e.g. the body under a garment) casts shadows on the mesh but is not itself returned.
 - :meth:`fit`: fits the parameters of ``brdf`` (not the base-colour texture) and the RGB radiance of a
   constant environment light to ``capture`` on ``mesh``; returns the fitted material, light and figures.
+- Inputs are checked before any implementation's :meth:`render` or :meth:`render_texture` runs
+  (:func:`check_shading_inputs`): a NaN or Inf in ``material.base_color``, ``material.params``,
+  ``light.radiance``, ``light.envmap`` or ``light.rotation_deg`` raises :class:`pgc.errors.PGCDataError` naming
+  the array and the count, instead of an image of NaN.
 """
 
 from __future__ import annotations
 
+import functools
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 from pydantic import Field
 
+from pgc.checks import require_finite
 from pgc.events import Reporter
-from pgc.options import Options
+from pgc.options import Options, count, seed_field
 from pgc.roles._base import RoleImplementation
 from pgc.roles.splat_renderer import RenderOutput
 from pgc.types import Camera, Capture, Light, Material, Mesh
+
+MAX_SPP = 65536
+"""Most samples per pixel of a render."""
+MAX_STEPS = 1_000_000
+"""Most optimiser steps of a fit."""
 
 
 class MaterialFitSettings(Options):
@@ -36,26 +47,26 @@ class MaterialFitSettings(Options):
     lr: float = Field(0.01, gt=0.0)
     """Adam learning rate (paper: 0.01). Scalars and colours are optimised directly; the light radiance
     as its logarithm (a step changes it by ~lr relative, whatever its scale)."""
-    spp: int = Field(4, ge=1)
+    spp: int = count(4, 1, MAX_SPP)
     """Samples per pixel of each differentiable render (paper: 4)."""
-    views_per_step: int = Field(12, ge=1)
+    views_per_step: int = count(12, 1, 10_000)
     """Each Adam step renders one film of at most this many views (same image size, side by side); the steps
     cycle through the films. Bounds the cost of a step whatever the view count; fewer views per step add
     gradient noise from the view sampling."""
-    shards: int = Field(2, ge=1)
+    shards: int = count(2, 1, 256)
     """Each film's views are dealt into this many shards, rendered on one Dr.Jit thread each (in parallel
     processes, up to the cores the process is allotted) and their gradients summed in shard order: the result
     does not depend on the thread count (Dr.Jit's multi-threaded gradient sums do, by racy atomic adds)."""
-    parallel_min_pixels: int = Field(16384, ge=0)
+    parallel_min_pixels: int = count(16384, 0, 2**31 - 1)
     """Shards render in parallel processes only when a film has at least this many pixels: a worker process
     takes about half a second to start, more than a small fit saves (the tiny demo's 48 px films take 40 steps
     of a few milliseconds). The result is the same bytes either way."""
-    max_depth: int = Field(4, ge=2)
+    max_depth: int = count(4, 2, 64)
     """Path length while fitting and when comparing models (4: direct light plus two indirect bounces;
     light trapped between garment and body needs them)."""
-    max_iterations: int = Field(3000, ge=1)
+    max_iterations: int = count(3000, 1, MAX_STEPS)
     """Upper bound on Adam steps (paper: 3000 fixed)."""
-    patience: int = Field(100, ge=1)
+    patience: int = count(100, 1, 100_000)
     """Stopping window W: stop when the mean loss of the last W steps is not ``min_improvement`` (relative)
     below the mean of the W steps before (the 4-spp loss is noisy; window means see through it)."""
     min_improvement: float = Field(2e-3, ge=0.0)
@@ -66,19 +77,19 @@ class MaterialFitSettings(Options):
     final_lr_factor: float = Field(0.1, gt=0.0, le=1.0)
     """Once stopping is decided, ``patience`` more steps run at this fraction of ``lr``; the result is the mean
     of their iterates (smaller noise-driven jitter; at a bound the jitter is one-sided and biases a mean)."""
-    max_image_side: int = Field(96, ge=8)
+    max_image_side: int = count(96, 8, 16384)
     """Images are area-downsampled so their longer side is at most this (fit cost ~ pixels)."""
-    holdout_every: int = Field(4, ge=2)
+    holdout_every: int = count(4, 2, 10_000)
     """Model selection: every k-th view is held out of fitting and used to compare the models."""
     margin_db: float = Field(0.3, ge=0.0)
     """Model selection: the simplest model whose held-out PSNR is within this of the best is chosen (equally
     adequate models differ by up to about 0.1 dB held out; docs/pbr.md has the measurements)."""
-    eval_spp: int = Field(1024, ge=1)
+    eval_spp: int = count(1024, 1, MAX_SPP)
     """Samples per pixel of the renders that measure held-out PSNR: high enough that the renders' own Monte
     Carlo noise does not decide the model selection (docs/pbr.md, "Model selection")."""
     select_model: bool = False
     """Fit lambertian, disney and pgc-sheen and keep the simplest adequate one (pgc.brdfs.select)."""
-    seed: int = 0
+    seed: int = seed_field()
 
 
 @dataclass
@@ -88,8 +99,44 @@ class MaterialFit:
     figures: dict[str, Any] = field(default_factory=dict)
 
 
+def check_shading_inputs(material: Material, light: Light, where: str = "pbr_renderer") -> None:
+    """Refuse a material or light holding NaN/Inf (one ``np.isfinite`` pass per array): a renderer would
+    return an image of NaN for them."""
+    fix = "give finite values (a texture or map read from a file: check the file)"
+    if material.base_color is not None:
+        require_finite(where, "material.base_color", material.base_color, fix)
+    for key, value in material.params.items():
+        require_finite(where, f"material.params['{key}']", value)
+    require_finite(where, "light.radiance", light.radiance)
+    if light.envmap is not None:
+        require_finite(where, "light.envmap", light.envmap, fix)
+    require_finite(where, "light.rotation_deg", float(light.rotation_deg))
+
+
+def _checked(method: Callable[..., Any]) -> Callable[..., Any]:
+    """``method`` (``render`` or ``render_texture``) preceded by :func:`check_shading_inputs`."""
+
+    @functools.wraps(method)
+    def checked(self: "PBRRenderer", mesh: Mesh, material: Material, light: Light, *args: Any,
+                **kwargs: Any) -> Any:
+        check_shading_inputs(material, light, f"pbr_renderer {type(self).__name__}.{method.__name__}")
+        return method(self, mesh, material, light, *args, **kwargs)
+
+    checked.inputs_checked = True  # type: ignore[attr-defined]
+    return checked
+
+
 class PBRRenderer(RoleImplementation, ABC):
     role = "pbr_renderer"
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """Every implementation's ``render`` and ``render_texture`` check the material and light first."""
+        super().__init_subclass__(**kwargs)
+        for name in ("render", "render_texture"):
+            method = cls.__dict__.get(name)
+            if callable(method) and not getattr(method, "__isabstractmethod__", False) \
+                    and not getattr(method, "inputs_checked", False):
+                setattr(cls, name, _checked(method))
 
     @abstractmethod
     def render(self, mesh: Mesh, material: Material, light: Light, camera: Camera,

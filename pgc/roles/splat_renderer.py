@@ -15,6 +15,9 @@ Rendering contract (the 3DGS rasteriser)
 - Output :class:`RenderOutput`: ``color`` (H, W, 3) = sum of weighted colours + T_final * background,
   ``alpha`` (H, W) = 1 - T_final, ``depth`` (H, W) = sum of weighted camera depths / alpha (0 where alpha is 0).
 - Never NaN/Inf: degenerate scales, zero quaternions and Gaussians behind the camera give finite output.
+- Inputs are checked once per call, before any implementation runs (:func:`check_render_inputs`, applied to
+  every subclass's ``render``): a NaN or Inf in means, quats, scales, opacities, SH or the background, or
+  arrays of the wrong shape, raise :class:`pgc.errors.PGCDataError` naming the array and the count.
 
 Fit contract: :meth:`SplatRenderer.fit` optimises mesh-embedded Gaussians (:class:`pgc.types.GaussianSet`)
 on ``mesh`` against the capture with the paper's loss and schedule (:class:`FitSplatsSettings`), reporting
@@ -24,17 +27,25 @@ progress through ``reporter``, and returns a :class:`SplatFit`. Implementations 
 
 from __future__ import annotations
 
+import functools
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 from pydantic import Field
 
+from pgc.checks import require_finite
+from pgc.errors import PGCDataError
 from pgc.events import Reporter
-from pgc.options import Options
+from pgc.options import Options, count, seed_field
 from pgc.roles._base import RoleImplementation
 from pgc.types import Camera, Capture, GaussianSet, Mesh, WorldGaussians
+
+MAX_STEPS = 1_000_000
+"""Most optimiser steps of a fit (the paper's splat fit takes 30000)."""
+MAX_GAUSSIANS = 10_000_000
+"""Most Gaussians of a fit (3DGS scenes hold up to a few million)."""
 
 
 @dataclass
@@ -50,18 +61,18 @@ class RenderOutput:
 class FitSplatsSettings(Options):
     """Settings of :meth:`SplatRenderer.fit` (the ``[stages.fit_splats]`` table); paper values noted."""
 
-    iterations: int = Field(3000, ge=1, description=(
+    iterations: int = count(3000, 1, MAX_STEPS, (
         "most Adam steps (paper: 30000); the schedules (position lr decay, SH degree, coarse phase) span this "
         "count, and the fit stops earlier once the held-out PSNR has converged (converge_db)"))
-    converge_every: int = Field(100, ge=1, description=(
+    converge_every: int = count(100, 1, MAX_STEPS, (
         "steps between held-out PSNR evaluations (the convergence test and the time-to-PSNR curve)"))
     converge_db: float = Field(0.05, ge=0.0, description=(
         "stop when the last converge_patience evaluations raised the best held-out PSNR by less than this (dB); "
         "0 = always run every iteration"))
-    converge_patience: int = Field(3, ge=1, description="evaluations without converge_db of gain before stopping")
+    converge_patience: int = count(3, 1, 10_000, "evaluations without converge_db of gain before stopping")
     converge_after: float = Field(0.25, ge=0.0, le=1.0, description=(
         "fraction of iterations before which the fit never stops (the coarse phase and the first SH degrees)"))
-    relocate_every: int = Field(0, ge=0, description=(
+    relocate_every: int = count(0, 0, MAX_STEPS, (
         "steps between relocations of dead Gaussians (opacity below relocate_opacity) onto live ones, sampled by "
         "opacity (3DGS-MCMC style: the count stays fixed, opacity is split so the composite is unchanged); "
         "0 = never"))
@@ -72,8 +83,8 @@ class FitSplatsSettings(Options):
         "fraction of the fit trained on half-resolution images (4x fewer pixels per step), then full resolution"))
     gaussians_per_pixel: float = Field(1.5, gt=0.0, description=(
         "initial count = this x the mean foreground pixels per training view x 2 (front and back halves)"))
-    min_gaussians: int = Field(2000, ge=1)
-    max_gaussians: int = Field(400000, ge=1)
+    min_gaussians: int = count(2000, 1, MAX_GAUSSIANS, "fewest Gaussians of the initial set")
+    max_gaussians: int = count(400000, 1, MAX_GAUSSIANS, "most Gaussians of the initial set")
     lr_position: float = Field(0.5e-4, gt=0.0, description="local-position lr at the start (paper 0.5e-4)")
     lr_position_final: float = Field(1e-7, gt=0.0, description="position lr at the end, exponential decay (paper 1e-7)")
     lr_other: float = Field(0.005, gt=0.0, description=(
@@ -87,6 +98,9 @@ class FitSplatsSettings(Options):
         "weight of the surface term: the mean squared offset of each Gaussian's local position along its "
         "triangle's normal (in units of the triangle scale k), keeping the near field on the surface it "
         "moves with; 0 = off (the paper)"))
+    adam_eps: float = Field(1e-15, gt=0.0, le=1e-4, description=(
+        "Adam's epsilon (3DGS and the paper: 1e-15); a larger one damps the steps of gradients at rounding "
+        "level, which 1e-15 turns into full learning-rate steps (docs/robustness.md)"))
     lambda_opacity: float = Field(0.0, ge=0.0, description=(
         "weight of the mean opacity (the L1 term of 3DGS-MCMC, 0.01 there): Gaussians the training images do not "
         "need fade out, and with relocate_every they are moved onto live ones; 0 = off (the paper)"))
@@ -100,10 +114,10 @@ class FitSplatsSettings(Options):
         "initial DC colour: 'views' = median of the training images that see the Gaussian (a head start for short "
         "CPU fits), 'random' = U(0.5, 0.7) as in 3DGS"))
     focus_margin: float = Field(0.06, ge=0.0, le=1.0, description="crop margin, fraction of the image height")
-    max_sh_degree: int = Field(3, ge=0, le=3)
-    sh_interval: int = Field(500, ge=1, description=(
+    max_sh_degree: int = count(3, 0, 3, "highest spherical-harmonics degree")
+    sh_interval: int = count(500, 1, MAX_STEPS, (
         "steps between SH degree increases at the paper's 30000 steps; scaled to the fraction of the fit"))
-    holdout_every: int = Field(8, ge=2, description=(
+    holdout_every: int = count(8, 2, 10_000, (
         "every k-th view is held out for PSNR and model choice (with at least 2k views; fewer: none)"))
     prune_weight: float = Field(0.5, ge=0.0, description=(
         "prune Gaussians whose summed compositing weight over all training views is below this (pixels)"))
@@ -116,9 +130,9 @@ class FitSplatsSettings(Options):
     keep: str = Field("garment", pattern="^(garment|all)$", description=(
         "'garment': return only Gaussians on garment-labelled faces (parent indices stay those of the full mesh)"))
     checkpoint_dir: str | None = Field(None, description="directory for resumable checkpoints (None: none)")
-    checkpoint_every: int = Field(200, ge=1)
-    log_every: int = Field(25, ge=1)
-    seed: int = 0
+    checkpoint_every: int = count(200, 1, MAX_STEPS, "steps between checkpoints")
+    log_every: int = count(25, 1, MAX_STEPS, "steps between progress events")
+    seed: int = seed_field()
 
 
 @dataclass
@@ -131,8 +145,52 @@ class SplatFit:
     figures: dict[str, Any] = field(default_factory=dict)
 
 
+GAUSSIAN_FIELDS = (("means", (3,)), ("quats", (4,)), ("scales", (3,)), ("opacities", ()), ("sh", (None, 3)))
+"""The arrays of :class:`WorldGaussians` and their trailing shapes (None: any length)."""
+
+
+def check_render_inputs(gaussians: WorldGaussians, background: np.ndarray | None = None,
+                        where: str = "splat_renderer") -> None:
+    """Refuse Gaussians whose arrays are not (N, ...) of the role's shapes or hold NaN/Inf (one
+    ``np.isfinite`` pass per array), and a non-finite background: a renderer would drop or smear them."""
+    n = None
+    for name, tail in GAUSSIAN_FIELDS:
+        a = np.asarray(getattr(gaussians, name))
+        ok = a.ndim == 1 + len(tail) and all(t is None or t == s for t, s in zip(tail, a.shape[1:]))
+        if not ok or (n is not None and a.shape[0] != n):
+            shape = ", ".join(["N", *("K" if t is None else str(t) for t in tail)])
+            raise PGCDataError(f"{where}: WorldGaussians.{name} must have shape ({shape}) with N = {n or 'len(means)'}, "
+                               f"got {a.shape}")
+        n = a.shape[0]
+        require_finite(where, f"WorldGaussians.{name}", a)
+    if background is not None:
+        require_finite(where, "background", background)
+
+
+def _checked(render: Callable[..., RenderOutput]) -> Callable[..., RenderOutput]:
+    """``render`` preceded by :func:`check_render_inputs` (at the public entry: the fits call their backends'
+    steps, not ``render``)."""
+
+    @functools.wraps(render)
+    def checked(self: "SplatRenderer", gaussians: WorldGaussians, camera: Camera, background: np.ndarray | None = None,
+                *args: Any, **kwargs: Any) -> RenderOutput:
+        check_render_inputs(gaussians, background, f"splat_renderer {type(self).__name__}.render")
+        return render(self, gaussians, camera, background, *args, **kwargs)
+
+    checked.inputs_checked = True  # type: ignore[attr-defined]
+    return checked
+
+
 class SplatRenderer(RoleImplementation, ABC):
     role = "splat_renderer"
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """Every implementation's ``render`` checks its inputs first (:func:`check_render_inputs`)."""
+        super().__init_subclass__(**kwargs)
+        render = cls.__dict__.get("render")
+        if callable(render) and not getattr(render, "__isabstractmethod__", False) \
+                and not getattr(render, "inputs_checked", False):
+            cls.render = _checked(render)  # type: ignore[method-assign]
 
     @abstractmethod
     def render(self, gaussians: WorldGaussians, camera: Camera, background: np.ndarray | None = None,

@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from pgc.errors import PGCDataError
 from pgc.events import Reporter
 from pgc.roles.simulator import Simulation, Simulator
 from pgc.sim.collision import (
@@ -66,6 +67,10 @@ class Stepper(ABC):
 
 
 def step_settings(options: XPBDOptions, fps: float) -> StepSettings:
+    """The substep settings at the motion's ``fps``; a NaN, infinite or non-positive rate is refused (its time
+    step would make the first frame diverge, reported as a stiffness problem)."""
+    if not (math.isfinite(fps) and fps > 0):
+        raise PGCDataError(f"motion: fps must be a finite positive number (frames per second), got {fps}")
     h = 1.0 / (fps * options.substeps)
     return StepSettings(options.substeps, options.iterations, h, math.exp(-options.damping * h),
                         options.collision_offset, options.friction, options.contact_radius,

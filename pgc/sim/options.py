@@ -6,14 +6,14 @@ from typing import Literal
 
 from pydantic import Field
 
-from pgc.options import Options
+from pgc.options import Options, count
 
 
 class XPBDOptions(Options):
     """XPBD cloth (Macklin et al. 2016) on an animated body. Defaults are the paper's settings."""
 
-    substeps: int = Field(30, ge=1, description="substeps per motion frame (paper: 30 at 30 fps)")
-    iterations: int = Field(20, ge=1, description="constraint iterations per substep (paper: 20)")
+    substeps: int = count(30, 1, 1000, "substeps per motion frame (paper: 30 at 30 fps)")
+    iterations: int = count(20, 1, 1000, "constraint iterations per substep (paper: 20)")
     solver: Literal["coloured", "jacobi"] = Field(
         "coloured", description="parallel update: Gauss-Seidel per graph colour, or Jacobi with relaxation "
         "(default: colouring, which reached a lower residual per unit time in benchmarks/bench_simulator.py)")
@@ -30,12 +30,12 @@ class XPBDOptions(Options):
     friction: float = Field(0.3, ge=0.0, description="Coulomb friction coefficient against the body")
     contact_radius: float = Field(0.05, gt=0.0, description="only vertices within this distance of the body "
                                   "surface (m) are collided: deeper penetrations are not resolved")
-    candidates: int = Field(8, ge=1, description="nearest body triangles per cloth vertex, found once per frame")
+    candidates: int = count(8, 1, 256, "nearest body triangles per cloth vertex, found once per frame")
     self_collision: bool = Field(False, description="vertex-vertex self-collision (pairs found once per frame)")
     self_thickness: float = Field(0.004, gt=0.0, description="minimum distance between non-adjacent vertices (m)")
-    settle_frames: int = Field(10, ge=0, description="frames simulated on the capture pose before the motion")
-    blend_frames: int = Field(10, ge=0, description="frames blending the body from the capture pose into "
-                              "motion frame 0 when they differ")
+    settle_frames: int = count(10, 0, 10_000, "frames simulated on the capture pose before the motion")
+    blend_frames: int = count(10, 0, 10_000, "frames blending the body from the capture pose into motion frame 0 "
+                              "when they differ")
     sag_free: bool = Field(False, description="solve the sag-free rest shape on the capture pose first")
-    sag_free_iterations: int = Field(6, ge=1, description="fixed-point iterations of the sag-free solve")
+    sag_free_iterations: int = count(6, 1, 1000, "fixed-point iterations of the sag-free solve")
     dtype: Literal["float32", "float64"] = Field("float32", description="floating point precision")

@@ -147,13 +147,13 @@ class FitBackend(ABC):
         return {}
 
 
-def adam_update(p: Any, g: Any, m: Any, v: Any, t: int, lr: Any) -> tuple[Any, Any, Any]:
-    """One bias-corrected Adam update (b1 0.9, b2 0.999, eps 1e-15) of arrays of any library with arithmetic
-    operators (numpy, torch, JAX); returns new (p, m, v)."""
+def adam_update(p: Any, g: Any, m: Any, v: Any, t: int, lr: Any, eps: float = ADAM_EPS) -> tuple[Any, Any, Any]:
+    """One bias-corrected Adam update (b1 0.9, b2 0.999, ``eps`` added to the root of the second moment) of
+    arrays of any library with arithmetic operators (numpy, torch, JAX); returns new (p, m, v)."""
     m = ADAM_B1 * m + (1.0 - ADAM_B1) * g
     v = ADAM_B2 * v + (1.0 - ADAM_B2) * g * g
     m_hat, v_hat = m / (1.0 - ADAM_B1 ** t), v / (1.0 - ADAM_B2 ** t)
-    return p - lr * m_hat / (v_hat ** 0.5 + ADAM_EPS), m, v
+    return p - lr * m_hat / (v_hat ** 0.5 + eps), m, v
 
 
 def learning_rates(p: float, factor: float, n_sh: int, s: FitSplatsSettings) -> dict[str, Any]:

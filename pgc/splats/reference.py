@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pgc.roles.splat_renderer import RenderOutput
+from pgc.checks import require_finite
+from pgc.roles.splat_renderer import RenderOutput, check_render_inputs
 from pgc.splats.projection import ALPHA_MAX, ALPHA_MIN, T_MIN, project
 from pgc.types import Camera, WorldGaussians
 
@@ -22,6 +23,7 @@ def background_image(background: np.ndarray | None, height: int, width: int) -> 
     if background is None:
         return np.zeros((height, width, 3))
     bg = np.asarray(background, np.float64)
+    require_finite("splat renderer", "background", bg)
     if bg.shape == (3,):
         return np.broadcast_to(bg, (height, width, 3)).copy()
     if bg.shape != (height, width, 3):
@@ -32,6 +34,7 @@ def background_image(background: np.ndarray | None, height: int, width: int) -> 
 def render_reference(world: WorldGaussians, camera: Camera, background: np.ndarray | None = None,
                      sh_degree: int | None = None, near: float = 0.01) -> RenderOutput:
     """Render by looping over pixels and, inside each pixel, over its depth-sorted Gaussians (float64)."""
+    check_render_inputs(world, background, "render_reference")
     h, w = camera.height, camera.width
     bg = background_image(background, h, w)
     p = project(world, camera, sh_degree, near)

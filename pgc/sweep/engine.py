@@ -178,11 +178,25 @@ def _run_dask(tasks: list[Task], scheduler: str, reporter: Reporter, retries: in
         else:
             address = where
         try:
-            with Client(address) as client:
+            with connect(Client, address, scheduler) as client:
                 return _submit_all(client, tasks, reporter, retries, threads, name, as_completed)
         finally:
             if cluster is not None:
                 cluster.close()
+
+
+def connect(client_class: Any, address: Any, scheduler: str) -> Any:
+    """A Dask client of ``address``; a scheduler address nothing answers at is a user error that says so (Dask
+    raises a bare OSError, 'Timed out trying to connect', after ``distributed.comm.timeouts.connect``)."""
+    try:
+        return client_class(address)
+    except OSError as exc:
+        if not isinstance(address, str):
+            raise
+        raise PGCConfigError(
+            f"--scheduler {scheduler}: no Dask scheduler could be reached at {address} ({exc}); start one there "
+            f"('dask scheduler --port PORT' on that host, then 'dask worker {address}' on each worker machine) or "
+            "run on this machine with --scheduler local:N (N worker processes)") from exc
 
 
 def _submit_all(client: Any, tasks: list[Task], reporter: Reporter, retries: int, threads: int | None,

@@ -43,12 +43,13 @@ def run_sweep(path: str | os.PathLike, out: str | os.PathLike | None = None, sch
     """Run the sweep file ``path`` into ``out`` (default ``runs/sweep-NAME``); returns ``{"records", "failed",
     "computed", "out", "table"}`` (``computed``: how many tasks ran now; 0 on a rerun of a finished sweep;
     ``table``: the file's :class:`~pgc.sweep.spec.Table`)."""
+    from pgc.checks import naming_output
     from pgc.io.lock import FolderLock
     from pgc.sweep.table import write_outputs
 
     sweep = load_sweep(path, registry)
     out = Path(out or f"runs/sweep-{sweep.name}")
-    with FolderLock(out, "pgc sweep"):
+    with FolderLock(out, "pgc sweep"), naming_output(out):
         tasks, units, done = plan(sweep, out)
         outcome = run_tasks(tasks, scheduler, reporter, retries=retries, threads=threads, name="sweep")
         results = done | outcome.results

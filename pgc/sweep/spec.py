@@ -16,7 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from pgc import config as config_mod
-from pgc.errors import PGCConfigError
+from pgc.errors import PGCConfigError, PGCDataError
+from pgc.io.limits import read_toml
 
 STEPS = ("reconstruct", "animate", "render", "eval")
 """The steps in pipeline order; a sweep runs a prefix of them."""
@@ -92,9 +93,11 @@ def load_sweep(path: str | Path, registry: Any = None) -> Sweep:
     if not path.is_file():
         raise PGCConfigError(f"{path}: sweep file not found")
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = read_toml(path)
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise PGCConfigError(f"{path}: not valid TOML ({exc})") from None
+    except PGCDataError as exc:  # a size or nesting limit
+        raise PGCConfigError(str(exc)) from None
     _unknown(path, "", data, TOP_KEYS)
     head = _table(path, data, "sweep")
     _unknown(path, "[sweep]", head, SWEEP_KEYS)
@@ -259,6 +262,7 @@ def _configurations(path: Path, head: dict[str, Any], table: dict[str, Any], reg
         source = f"{path} [configurations.{name}]"
         conf = Configuration(name, config_mod.deep_merge(start, overrides), source)
         conf.cfg = config_mod.resolve(conf.data, registry, source=source)
+        conf.cfg.check_implementations()
         out.append(conf)
     return out
 

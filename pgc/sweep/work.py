@@ -1,9 +1,9 @@
 """The sweep's tasks and its work folders, laid out so that configurations share what they have in common.
 
-``OUT/captures/<scene>-<key>/``: a synthetic scene (key: its spec). ``OUT/assets/<scene>-<key>/``: one asset
-per scene and *reconstruct-affecting* configuration (key: the scene's key and the resolved configuration
-without the downstream tables :data:`DOWNSTREAM`), so configurations that differ only downstream share one
-asset. ``OUT/runs/<scene>-<motion>-<key>/``: one run folder per asset, motion and resolved configuration.
+``OUT/captures/<scene>-<key>/``: a synthetic scene (key: its spec and the configuration's scene renderer).
+``OUT/assets/<scene>-<key>/``: one asset per scene and *reconstruct-affecting* configuration (key: the scene's
+key and the resolved configuration without the downstream tables :data:`DOWNSTREAM`), so configurations that
+differ only downstream share one asset. ``OUT/runs/<scene>-<motion>-<key>/``: one run folder per asset, motion and resolved configuration.
 A folder that another configuration's folder could partly reuse starts as a copy of that folder's stage
 caches (:func:`seed_from`): the asset of the scene's first configuration, or the run of the first
 configuration with the same asset and motion. The pipeline's own content keys then decide which stages are
@@ -13,13 +13,14 @@ reused (e.g. mesh, splats and base colour when only the BRDF differs) and which 
 
 from __future__ import annotations
 
-import json
 import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from pgc.errors import PGCDataError
+from pgc.io.limits import read_json
 from pgc.pipeline.cache import content_key, file_key
 from pgc.sweep.engine import Task
 from pgc.sweep.spec import Configuration, Scene, Sweep
@@ -38,9 +39,11 @@ def asset_config_key(cfg: Any) -> str:
     return content_key("asset-config", {k: v for k, v in resolved.items() if k not in DOWNSTREAM["roles"]}, stages)
 
 
-def scene_key(scene: Scene) -> str:
+def scene_key(scene: Scene, cfg: Any) -> str:
+    """The key of a scene's capture: a synthetic scene's spec and the scene renderer of the configuration ``cfg``
+    that renders it, or a capture folder's content."""
     if scene.synth is not None:
-        return content_key("synth-scene", scene.synth)
+        return content_key("synth-scene", scene.synth, cfg.role_key("scene_renderer"))
     return content_key("capture-scene", file_key(scene.capture))
 
 
@@ -76,16 +79,17 @@ def plan(sweep: Sweep, out: Path) -> tuple[list[Task], list[Unit], dict[str, Any
     root = sweep.path.parent
     motions = [str((root / m).resolve()) if (root / m).exists() else m for m in sweep.motions]
     for scene in sweep.scenes:
-        skey = scene_key(scene)
-        if scene.synth is not None:
-            capture = out / "captures" / f"{scene.name}-{skey}"
-            cap_task = add(f"capture-{skey}", make_capture, (scene.synth, str(capture), str(out)), [])
-            cap_deps = [cap_task]
-        else:
-            capture, cap_deps = scene.capture, []
         first_asset: tuple[str, Path] | None = None
         first_run: dict[tuple[str, str], tuple[str, Path]] = {}
         for conf in sweep.configurations:
+            skey = scene_key(scene, conf.cfg)  # configurations with one scene renderer share the capture
+            if scene.synth is not None:
+                capture = out / "captures" / f"{scene.name}-{skey}"
+                cap_task = add(f"capture-{skey}", make_capture,
+                               (scene.synth, str(capture), conf.data, conf.source, str(out)), [])
+                cap_deps = [cap_task]
+            else:
+                capture, cap_deps = scene.capture, []
             akey = content_key("asset", skey, asset_config_key(conf.cfg))
             asset = out / "assets" / f"{scene.name}-{akey}"
             donor = first_asset if first_asset and first_asset[0] != f"asset-{akey}" else None
@@ -119,8 +123,8 @@ def read_result(out: Path, key: str) -> dict[str, Any] | None:
     if not path.is_file():
         return None
     try:
-        return json.loads(path.read_text())
-    except json.JSONDecodeError:
+        return read_json(path, "sweep result")
+    except PGCDataError:  # malformed or over the limits: the task runs again
         return None
 
 
@@ -143,16 +147,19 @@ def seed_from(donor: str | None, folder: Path) -> bool:
     return True
 
 
-def make_capture(synth: dict[str, Any], folder: str, out: str, *deps: Any) -> dict[str, Any]:
+def make_capture(synth: dict[str, Any], folder: str, data: dict[str, Any], source: str, out: str,
+                 *deps: Any) -> dict[str, Any]:
     """Generate the synthetic capture of a scene spec (``preset``, ``garment``, ``fabric``, ``seed``, ``framing``,
-    and ``detail``, ``fit``, ``looseness`` where given; a missing or None value keeps the preset's), as
-    ``pgc synth`` does with the same options."""
+    and ``detail``, ``fit``, ``looseness`` where given; a missing or None value keeps the preset's) with the scene
+    renderer of the configuration ``data``, as ``pgc synth --config`` does with the same options."""
     from pgc.synth.generate import generate, get_preset
+    from pgc.synth.render import scene_renderer
 
     start = time.perf_counter()
+    renderer = scene_renderer(_config(data, source))
     preset = get_preset(synth["preset"], framing=synth.get("framing"))
     generate(folder, preset, garment=synth.get("garment"), fabric=synth.get("fabric"), seed=synth["seed"],
-             looseness=synth.get("looseness"), detail=synth.get("detail"), fit=synth.get("fit"))
+             looseness=synth.get("looseness"), detail=synth.get("detail"), fit=synth.get("fit"), renderer=renderer)
     key = f"capture-{Path(folder).name.rsplit('-', 1)[1]}"
     return _finish(out, key, {"capture": folder, "seconds": time.perf_counter() - start})
 

@@ -5,14 +5,17 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pgc.errors import PGCDataError
 from pgc.events import Reporter
 from pgc.synth.ground_truth import GroundTruth, read_ground_truth
-from pgc.synth.render import build_scene, ground_truth_layers, render_color
 from pgc.types import Camera, Light
+
+if TYPE_CHECKING:
+    from pgc.roles.scene_renderer import SceneRenderer
 
 DEFAULT_FRAME_SPP = 64
 
@@ -31,8 +34,9 @@ def _as_sequence(name: str, array: np.ndarray, vertex_count: int) -> np.ndarray:
 def render_frames(scene_dir_or_gt: str | os.PathLike | GroundTruth, garment_vertices: np.ndarray,
                   body_vertices: np.ndarray, cameras: list[Camera], light: Light | None = None,
                   spp: int | None = None, seed: int = 0, gt_samples: int = 2, sampler: str = "ldsampler",
-                  reporter: Reporter | None = None) -> list[dict[str, np.ndarray]]:
-    """Render T frames of the ground-truth scene with new vertices.
+                  reporter: Reporter | None = None, *, renderer: SceneRenderer) -> list[dict[str, np.ndarray]]:
+    """Render T frames of the ground-truth scene with new vertices, by ``renderer`` (the configuration's, see
+    :func:`pgc.synth.render.scene_renderer`).
 
     garment_vertices (T, Vg, 3) and body_vertices (T, Vb, 3) (metres; the topology of the capture's
     ground-truth meshes); ``light`` defaults to the capture light; ``spp`` to 64 (of Mitsuba's ``sampler``;
@@ -55,11 +59,11 @@ def render_frames(scene_dir_or_gt: str | os.PathLike | GroundTruth, garment_vert
     with reporter.stage("render_gt_frames", total=len(gv), spp=spp) as st:
         for t in range(len(gv)):
             geometry = gt.geometry(gv[t], bv[t])
-            scene, labels = build_scene(geometry, light)
+            scene, labels = renderer.build_scene(geometry, light)
             out: dict[str, list[np.ndarray]] = {"color": [], "alpha": [], "garment_mask": [], "segmentation": []}
             for c, cam in enumerate(cameras):
-                color, _ = render_color(scene, cam, spp, seed * 100003 + t * 1009 + c, sampler)
-                layers = ground_truth_layers(scene, labels, geometry, cam, gt_samples)
+                color, _ = renderer.render_color(scene, cam, spp, seed * 100003 + t * 1009 + c, sampler)
+                layers = renderer.ground_truth_layers(scene, labels, geometry, cam, gt_samples)
                 out["color"].append(color)
                 out["alpha"].append(layers["mask"])
                 out["garment_mask"].append(layers["garment_coverage"])
@@ -72,7 +76,7 @@ def render_frames(scene_dir_or_gt: str | os.PathLike | GroundTruth, garment_vert
 def render_frames_files(gt_dir: str | os.PathLike, garment_npz: str | os.PathLike, body_npz: str | os.PathLike,
                         out_dir: str | os.PathLike, cameras: list[Camera] | None = None,
                         light: Light | None = None, spp: int | None = None,
-                        reporter: Reporter | None = None) -> list[Path]:
+                        reporter: Reporter | None = None, *, renderer: SceneRenderer) -> list[Path]:
     """File front end of :func:`render_frames` (``pgc synth render-frames``): vertices from .npz files
     (key 'vertices', (T, V, 3)), cameras from the capture (default), one .npz per frame written to
     ``out_dir`` (color, alpha, garment_mask, segmentation: stacked over cameras) plus sRGB PNGs."""
@@ -91,7 +95,8 @@ def render_frames_files(gt_dir: str | os.PathLike, garment_npz: str | os.PathLik
 
     if cameras is None:
         cameras = read_capture(gt_dir).cameras
-    frames = render_frames(gt_dir, load(garment_npz), load(body_npz), cameras, light, spp, reporter=reporter)
+    frames = render_frames(gt_dir, load(garment_npz), load(body_npz), cameras, light, spp, reporter=reporter,
+                           renderer=renderer)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []

@@ -11,12 +11,16 @@ from __future__ import annotations
 import os
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pgc.errors import PGCDataError
 from pgc.events import Reporter
 from pgc.types import Capture, Mesh, View
+
+if TYPE_CHECKING:
+    from pgc.roles.scene_renderer import SceneRenderer
 
 
 @dataclass(frozen=True)
@@ -112,8 +116,10 @@ def garment_gap(body: Mesh, garment: Mesh) -> dict[str, float]:
 
 def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garment: str | None = None,
              fabric: str | None = None, seed: int = 0, looseness: float | None = None,
-             reporter: Reporter | None = None, detail: str | None = None, fit: str | None = None) -> Capture:
-    """Generate a synthetic capture into ``out`` and return it (as written).
+             reporter: Reporter | None = None, detail: str | None = None, fit: str | None = None, *,
+             renderer: SceneRenderer) -> Capture:
+    """Generate a synthetic capture into ``out``, rendered by ``renderer`` (the configuration's, see
+    :func:`pgc.synth.render.scene_renderer`), and return it (as written).
 
     The same arguments give byte-identical files. ``preset``: a name of :data:`PRESETS` or a SynthPreset;
     ``garment``, ``fabric``, ``looseness``, ``detail`` and ``fit`` override the preset's.
@@ -125,8 +131,6 @@ def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garm
     from pgc.synth.detail import get_detail, make_detail, root_offsets
     from pgc.synth.ground_truth import GroundTruth, shape_dict, write_ground_truth
     from pgc.synth.motions import MOTIONS, motion_rotations
-    from pgc.synth.render import build_scene, ground_truth_layers, render_color
-
     p = get_preset(preset) if isinstance(preset, str) else preset
     if p.sampler == "ldsampler":  # it takes powers of 4 only: round up rather than let Mitsuba warn
         p = replace(p, spp=int(4 ** np.ceil(np.log(max(p.spp, 1)) / np.log(4) - 1e-9)))
@@ -161,15 +165,15 @@ def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garm
                                distance=1.55 * body.shape.height, subject_radius=radius, seed=seed)
     gt = GroundTruth(body.mesh(), cloth, material, light, normal_map, fibres, detail=surface)
     geometry = gt.geometry()
-    scene, labels = build_scene(geometry, light)
-    empty, _ = build_scene(None, light)
+    scene, labels = renderer.build_scene(geometry, light)
+    empty, _ = renderer.build_scene(None, light)
 
     views = []
     with reporter.stage("synth_render", total=len(cameras), spp=p.spp) as st:
         for i, cam in enumerate(cameras):
-            color, _ = render_color(scene, cam, p.spp, seed * 100003 + i, p.sampler)
-            background, _ = render_color(empty, cam, min(p.spp, 16), seed * 100003 + i, p.sampler)
-            layers = ground_truth_layers(scene, labels, geometry, cam, p.gt_samples)
+            color, _ = renderer.render_color(scene, cam, p.spp, seed * 100003 + i, p.sampler)
+            background, _ = renderer.render_color(empty, cam, min(p.spp, 16), seed * 100003 + i, p.sampler)
+            layers = renderer.ground_truth_layers(scene, labels, geometry, cam, p.gt_samples)
             views.append(View(cam, color, layers["mask"], layers["segmentation"], background,
                               {"linear": color, "albedo": layers["albedo"], "depth": layers["depth"]}))
             st.progress(i + 1)

@@ -19,7 +19,6 @@ Layout::
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -29,6 +28,7 @@ import numpy as np
 from pgc.errors import PGCDataError
 from pgc.io import images as imgio
 from pgc.io.atomic import atomic_open, write_json
+from pgc.io.limits import read_json
 from pgc.io.mesh import read_mesh, write_mesh
 from pgc.synth.body import BodyModel
 from pgc.synth.detail import DetailSurface
@@ -116,8 +116,8 @@ def read_ground_truth(root: str | os.PathLike) -> GroundTruth:
     if not (gt_dir / "scene.json").is_file():
         raise PGCDataError(f"{root}: no synthetic ground truth here (expected {GT_DIR}/scene.json); "
                            "make one with 'pgc synth OUT'")
-    manifest = json.loads((gt_dir / "scene.json").read_text())
-    mat = json.loads((gt_dir / "material.json").read_text())
+    manifest = read_json(gt_dir / "scene.json", "ground-truth scene.json")
+    mat = read_json(gt_dir / "material.json", "ground-truth material.json")
     material = Material(mat["brdf"], mat["params"], imgio.read_exr(gt_dir / mat["base_color"]))
     normal_map = imgio.read_exr(gt_dir / mat["normal_map"]) if mat.get("normal_map") else None
     fibres = None
@@ -125,7 +125,7 @@ def read_ground_truth(root: str | os.PathLike) -> GroundTruth:
         z = np.load(gt_dir / "fibres.npz")
         fibres = Fibres(z["face"], z["bary"], z["direction"], float(z["length"]), float(z["radius"]), z["color"],
                         z["offset"] if "offset" in z else None)
-    light_doc = json.loads((gt_dir / "light.json").read_text())
+    light_doc = read_json(gt_dir / "light.json", "ground-truth light.json")
     garment = read_mesh(gt_dir / "garment.obj")
     detail = None
     if (gt_dir / "detail.npz").is_file():

@@ -1,29 +1,29 @@
 """Rendering the synthetic scene: path-traced colour and exact ray-cast ground truth per pixel (coverage
-mask, segmentation, albedo, depth), through the ``scene_renderer`` role (default: Mitsuba 3 on the CPU,
-``[scene_renderer]`` in the run configuration).
+mask, segmentation, albedo, depth), through the ``scene_renderer`` role that the run configuration chooses
+(``[scene_renderer]``; default: Mitsuba 3 on the CPU).
 
 This module holds what does not depend on the renderer: the scene description (:class:`SceneGeometry`),
 the labels, the sub-pixel rays of the ground truth and the reduction of their hits into layers (OpenCV
 pixel convention of :class:`pgc.types.Camera`): mask = covered fraction, segmentation = the label covering
 most samples, albedo = mean base colour over the covered samples (the BSDF's base colour; 0 where nothing
 is hit), depth = mean camera z (metres) over the covered samples (0 where nothing is hit).
-:func:`build_scene`, :func:`render_color` and :func:`ground_truth_layers` call the configured renderer.
+:func:`scene_renderer` builds the configuration's renderer; the functions that render take it as an argument.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pgc.synth.detail import DetailSurface
 from pgc.synth.fabrics import Fibres
 from pgc.texture.sample import sample_uv
-from pgc.types import Camera, Light, Material, Mesh
+from pgc.types import Camera, Material, Mesh
 
 if TYPE_CHECKING:
+    from pgc.config import RunConfig
     from pgc.roles.scene_renderer import SceneRenderer
 
 SKIN_ALBEDO = (0.56, 0.38, 0.29)
@@ -53,40 +53,15 @@ class SceneGeometry:
         return self.detail.mesh(self.garment.vertices)
 
 
-@lru_cache(maxsize=1)
-def scene_renderer() -> SceneRenderer:
-    """The ``scene_renderer`` of the default configuration, created once per process through the registry
-    (an unavailable one raises :class:`pgc.errors.PGCPluginError` naming the extra to install)."""
-    from pgc.config import resolve
+def scene_renderer(cfg: RunConfig) -> SceneRenderer:
+    """The scene renderer ``cfg`` chooses (``[scene_renderer]``), built with its options; none registered raises
+    :class:`pgc.errors.PGCPluginError` naming the extra to install."""
     from pgc.errors import PGCPluginError
-    from pgc.registry import default_registry
 
-    cfg = resolve(None, default_registry(), require_available=False)
     if "scene_renderer" not in cfg.roles:
         raise PGCPluginError("no scene_renderer is registered (the synthetic scene is path traced by the "
                              "Mitsuba backend); install with: pip install 'pgc[mitsuba]'")
     return cfg.create("scene_renderer")
-
-
-def build_scene(geometry: SceneGeometry | None, light: Light) -> tuple[Any, dict[str, int]]:
-    """The renderer's scene and a map from shape id ('body', 'garment', 'fibres') to segmentation label;
-    ``geometry`` None gives the empty dome."""
-    return scene_renderer().build_scene(geometry, light)
-
-
-def render_color(scene: Any, camera: Camera, spp: int, seed: int, sampler: str = "independent"
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """Path-traced linear RGB (H, W, 3) and the film's alpha (H, W) (1 where rays end on a shape or the
-    environment: everywhere under an environment light)."""
-    return scene_renderer().render_color(scene, camera, spp, seed, sampler)
-
-
-def ground_truth_layers(scene: Any, labels: dict[str, int], geometry: SceneGeometry | None, camera: Camera,
-                        samples: int = 4) -> dict[str, np.ndarray]:
-    """Exact per-pixel layers by ray casting ``samples`` x ``samples`` rays per pixel:
-    'mask' (H, W) coverage, 'segmentation' (H, W) uint8, 'albedo' (H, W, 3), 'depth' (H, W) metres,
-    'garment_coverage' (H, W) the fraction covered by the garment."""
-    return scene_renderer().ground_truth_layers(scene, labels, geometry, camera, samples)
 
 
 def subpixel_rays(camera: Camera, s: int) -> tuple[np.ndarray, np.ndarray]:

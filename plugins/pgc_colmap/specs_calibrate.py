@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pydantic import Field
 
-from pgc.options import Options
+from pgc.options import Options, count
 from pgc.registry import ImplementationSpec
 
 
@@ -12,10 +12,10 @@ class ColmapCalibratorOptions(Options):
     """COLMAP on the CPU: SIFT features, exhaustive matching, incremental mapping with the intrinsics fixed,
     aligned back to the capture's frame by a similarity."""
 
-    max_features: int = Field(4096, ge=64, description="SIFT features per image")
+    max_features: int = count(4096, 64, 1_000_000, "SIFT features per image")
     sift_peak_threshold: float = Field(0.002, gt=0.0, description="SIFT peak threshold (COLMAP's default 0.0067 "
                                                                   "finds few features on small cloth images)")
-    min_inliers: int = Field(12, ge=6, description="verified matches a view pair needs")
+    min_inliers: int = count(12, 6, 1_000_000, "verified matches a view pair needs")
 
 
 SPECS = [

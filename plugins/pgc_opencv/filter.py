@@ -7,8 +7,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from pgc.filtering.kernel import (box_widths, check_filter_inputs, check_kernel_size, gaussian_kernel_1d,
-                                  renormalise)
+from pgc.filtering.kernel import box_widths, gaussian_kernel_1d, renormalise
 from pgc.roles.filter import Filter
 from pgc_opencv.specs_filter import OpenCVFilterOptions
 
@@ -31,8 +30,6 @@ class OpenCVFilter(Filter):
         return cv2.sepFilter2D(stack, cv2.CV_32F, taps, taps, borderType=cv2.BORDER_CONSTANT)
 
     def lowpass(self, image: np.ndarray, alpha: np.ndarray, kernel_size: int) -> np.ndarray:
-        image, alpha = check_filter_inputs(image, alpha)
-        kernel_size = check_kernel_size(kernel_size)
         stack = np.concatenate([image * alpha[..., None], alpha[..., None]], axis=-1)
         blurred = np.concatenate([
             self._blur(np.ascontiguousarray(stack[..., c:c + _MAX_CHANNELS]), kernel_size).reshape(*stack.shape[:2], -1)

@@ -98,9 +98,9 @@ def _contributions(params, frames, parent, sh_mask, cam, background, bins, *, wi
 
 
 @partial(jax.jit, static_argnames=("width", "height", "tile", "near", "threads", "lambda_l1", "lambda_mask",
-                                   "lambda_surface", "lambda_opacity"))
+                                   "lambda_surface", "lambda_opacity", "adam_eps"))
 def _train_step(params, adam, t, lrs, frames, parent, sh_mask, cam, background, target, mask, band, bins, *, width,
-                height, tile, near, threads, lambda_l1, lambda_mask, lambda_surface, lambda_opacity):
+                height, tile, near, threads, lambda_l1, lambda_mask, lambda_surface, lambda_opacity, adam_eps):
     """One Adam step (number ``t`` >= 1) on one view; returns new params, Adam state, loss and the sRGB MSE."""
     n = params["means"].shape[0]
     ones = jnp.ones((n,), target.dtype)
@@ -119,7 +119,7 @@ def _train_step(params, adam, t, lrs, frames, parent, sh_mask, cam, background, 
     new_p, new_m, new_v = {}, {}, {}
     for name in params:
         new_p[name], new_m[name], new_v[name] = adam_update(params[name], grads[name], adam["m"][name],
-                                                            adam["v"][name], t, lrs[name])
+                                                            adam["v"][name], t, lrs[name], adam_eps)
     return new_p, {"m": new_m, "v": new_v}, loss, jnp.mean((pred - target) ** 2)
 
 
@@ -194,7 +194,8 @@ class JaxFitBackend(FitBackend):
             self.params, self.adam, float(t), lrs, self.frames, self.parent, _sh_mask(degree, self.dtype),
             handle.cam, handle.background, handle.target, handle.mask, handle.band, self._bins(handle),
             **self._kw(handle), lambda_l1=float(s.lambda_l1), lambda_mask=float(s.lambda_mask),
-            lambda_surface=float(s.lambda_surface), lambda_opacity=float(s.lambda_opacity))
+            lambda_surface=float(s.lambda_surface), lambda_opacity=float(s.lambda_opacity),
+            adam_eps=float(s.adam_eps))
         return loss, mse
 
     def render(self, handle: _Arrays, degree: int, keep: np.ndarray | None = None) -> np.ndarray:

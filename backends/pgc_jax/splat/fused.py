@@ -57,8 +57,9 @@ def _take(token: int) -> kernel.Workspace | None:
 def _host_forward(means, rotmats, scales, opacities, sh, cam, background, *, height, width, count, tile, threads,
                   keep):
     inputs = [np.asarray(x) for x in (means, rotmats, scales, opacities, sh)]
+    # inputs were checked at the role's entry (SplatRenderer.render) or made by the fit itself: no second pass
     out = kernel.forward(inputs, np.asarray(cam).view(np.float64), np.asarray(background), height, width, count,
-                         tile, threads)
+                         tile, threads, check_finite=False)
     images = (out.color, out.alpha, out.depth_sum)
     return (*images, _keep(out.workspace)) if keep else images
 
@@ -69,7 +70,7 @@ def _host_backward(token, means, rotmats, scales, opacities, sh, cam, background
     cam64, bg = np.asarray(cam).view(np.float64), np.asarray(background)
     workspace = _take(token)
     if workspace is None:
-        workspace = kernel.forward(inputs, cam64, bg, height, width, count, tile, threads).workspace
+        workspace = kernel.forward(inputs, cam64, bg, height, width, count, tile, threads, check_finite=False).workspace
     grads = kernel.backward(workspace, inputs, cam64, bg, np.asarray(g_color), np.asarray(g_alpha),
                             np.asarray(g_dsum), count, threads)
     return tuple(grads)

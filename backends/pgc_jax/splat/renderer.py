@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 
 from pgc.cores import allotted_cores
-from pgc.errors import PGCConfigError, PGCDataError
+from pgc.errors import PGCConfigError
 from pgc.events import Reporter
 from pgc.roles.splat_renderer import FitSplatsSettings, RenderOutput, SplatFit, SplatRenderer
 from pgc.splats.fit import fit_splats
@@ -66,9 +66,7 @@ class JaxSplatRenderer(SplatRenderer):
         from pgc_jax.splat.render import render_view, rotmats_of
 
         n = len(gaussians.means)
-        sh = np.asarray(gaussians.sh)
-        if sh.ndim != 3 or sh.shape[0] != n or sh.shape[2] != 3:
-            raise PGCDataError(f"WorldGaussians.sh must have shape (N, K, 3) with N={n}, got {sh.shape}")
+        sh = np.asarray(gaussians.sh)  # shapes and values checked by the role (check_render_inputs)
         degree = int(round(np.sqrt(sh.shape[1]))) - 1 if sh_degree is None else int(sh_degree)
         bg = background_image(background, camera.height, camera.width)
         if self.compositor == "fused":
@@ -97,7 +95,8 @@ class JaxSplatRenderer(SplatRenderer):
         arrays = [np.asarray(x, dt) for x in (gaussians.means, quat_to_rotmat(np.asarray(gaussians.quats, np.float64)),
                                               gaussians.scales, gaussians.opacities, sh)]
         out = fused.forward(arrays, fused.camera_vector(camera, self.options.near), bg.astype(dt), camera.height,
-                            camera.width, (degree + 1) ** 2, fused.DEFAULT_TILE, self.threads)
+                            camera.width, (degree + 1) ** 2, fused.DEFAULT_TILE, self.threads,
+                            check_finite=False)  # checked by the role
         return RenderOutput(color=out.color.astype(np.float32), alpha=out.alpha.astype(np.float32),
                             depth=out.depth.astype(np.float32))
 

@@ -28,8 +28,15 @@ class LPIPSMetric(Metric):
     Runs on one torch thread: the images are small, and OpenMP barriers between contended threads cost several
     times the convolutions (the tiny demo's LPIPS values came out bit-identical)."""
 
+    name = "lpips"
     Options = LPIPSOptions
     higher_is_better = False
+
+    def min_image_size(self, masked: bool) -> tuple[int, str]:
+        """The backbone's smallest input without a mask; with one, any size (the crop is padded to it)."""
+        if masked:
+            return 1, "one pixel"
+        return MIN_SIZE[self.options.net], f"the '{self.options.net}' backbone's downsampling layers"
 
     def compute(self, pred: np.ndarray, target: np.ndarray, mask: np.ndarray | None) -> float:
         network = load_network(self.options.net)

@@ -86,7 +86,7 @@ class TorchFitBackend(FitBackend):
         with torch.no_grad():
             for name, p in self.params.items():
                 adam_update_in_place(p, p.grad, *self.moments[name], t, torch.as_tensor(lrs[name], dtype=p.dtype),
-                                     self.scratch[name])
+                                     self.scratch[name], s.adam_eps)
             mse = ((pred - handle.target) ** 2).mean()
         return loss.detach(), mse
 
@@ -127,7 +127,7 @@ class TorchFitBackend(FitBackend):
 
 
 def adam_update_in_place(p: torch.Tensor, g: torch.Tensor, m: torch.Tensor, v: torch.Tensor, t: int,
-                         lr: torch.Tensor | float, scratch: torch.Tensor) -> None:
+                         lr: torch.Tensor | float, scratch: torch.Tensor, eps: float = ADAM_EPS) -> None:
     """:func:`pgc.splats.fit.adam_update` on contiguous torch tensors of one shape, in place: updates ``p``,
     ``m`` and ``v``, overwrites ``g`` and ``scratch`` (a buffer of ``p``'s shape) and allocates nothing. The
     same operations in the same order as the reference (the same bits); a per-coefficient ``lr`` (the SH bands'
@@ -139,6 +139,6 @@ def adam_update_in_place(p: torch.Tensor, g: torch.Tensor, m: torch.Tensor, v: t
         lr = lr.expand(shape[1:]).reshape(1, -1)
     m.mul_(ADAM_B1).add_(torch.mul(g, 1.0 - ADAM_B1, out=scratch))
     v.mul_(ADAM_B2).add_(torch.mul(g, 1.0 - ADAM_B2, out=scratch).mul_(g))
-    denom = torch.div(v, 1.0 - ADAM_B2 ** t, out=scratch).sqrt_().add_(ADAM_EPS)
+    denom = torch.div(v, 1.0 - ADAM_B2 ** t, out=scratch).sqrt_().add_(eps)
     step = torch.div(m, 1.0 - ADAM_B1 ** t, out=g).mul_(lr)
     p.sub_(step.div_(denom))

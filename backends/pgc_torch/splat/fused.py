@@ -31,7 +31,9 @@ class FusedRasterize(torch.autograd.Function):
         inputs = [x.detach().to(dtype).contiguous() for x in (means, rotmats, scales, opacities, sh)]
         cam = kernel.camera_vector(camera, near)
         bg = background.to(dtype).contiguous()
-        out = kernel.forward(_arrays(inputs), cam, bg.numpy(), camera.height, camera.width, count, tile, threads)
+        # inputs were checked at the role's entry (SplatRenderer.render) or made by the fit itself: no second pass
+        out = kernel.forward(_arrays(inputs), cam, bg.numpy(), camera.height, camera.width, count, tile, threads,
+                             check_finite=False)
         ctx.save_for_backward(*inputs)
         ctx.state = (cam, bg, out.workspace, count, threads)
         return tuple(torch.from_numpy(x) for x in (out.color, out.alpha, out.depth_sum))
