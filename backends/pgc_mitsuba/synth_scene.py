@@ -84,6 +84,7 @@ def fibre_shape(fibres: Fibres, garment_vertices: np.ndarray, garment_faces: np.
 
 class MitsubaSceneRenderer(SceneRenderer):
     Options = MitsubaSceneOptions
+    light_kinds = ("constant", "envmap")
 
     def build_scene(self, geometry: SceneGeometry | None, light: Light) -> tuple[Any, dict[str, int]]:
         mi = mitsuba()

@@ -66,6 +66,7 @@ def run_info(folder: Path, run: dict[str, Any], frames: int) -> dict[str, Any]:
         m = read_json_object(metrics, f"evaluate the run again with 'pgc eval {folder} --gt CAPTURE'")
         out["metrics"] = {k: {n: x for n, x in v.items() if n != "per_frame"} for k, v in m.items()
                           if isinstance(v, dict) and "per_frame" in v}
+        out["metrics_light"] = m.get("light")
     return out
 
 
@@ -78,6 +79,8 @@ def _fmt(value: Any) -> str:
 
 
 def as_text(info: dict[str, Any]) -> str:
+    from pgc.io.light_record import describe
+
     lines = []
     if "motion" in info:
         lines += [f"run {info['folder']}", f"  motion {info['motion']}: {info['frames']} frames at {info['fps']} fps, "
@@ -88,10 +91,14 @@ def as_text(info: dict[str, Any]) -> str:
             light = r["light"] if isinstance(r.get("light"), dict) else {}
             kind = ("environment map" if light.get("envmap") else "fitted capture light") + \
                 (", rotating 360 deg" if light.get("rotating") else "")
+            if light.get("kind") == "envmap":
+                kind = describe(light)
             lines.append(f"  rendered frames {r['frames']} from cameras {r['cameras']}, kernel {r['kernel_size']} px, "
                          f"far field {r['far_source']}, {kind}")
         else:
             lines.append("  not rendered yet (pgc render RUN)")
+        if info.get("metrics"):
+            lines.append(f"  metrics against ground truth lit by {describe(info.get('metrics_light'))}")
         for variant, vals in info.get("metrics", {}).items():
             lines.append(f"  {variant:>10}: " + "  ".join(f"{k}={_fmt(v)}" for k, v in vals.items()))
         info = info["asset"]

@@ -35,6 +35,6 @@ def run(args: argparse.Namespace) -> int:
 
         light = envmap_light(args.run, args.light)
     with writing(args.run, "pgc render"):
-        out = render_run(args.run, cfg, light, reporter, rotate_light=args.rotate_light)
+        out = render_run(args.run, cfg, light, reporter, rotate_light=args.rotate_light, light_file=args.light)
     emit(args, {"render": str(out)}, f"frames written to {out}")
     return 0

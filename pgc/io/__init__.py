@@ -7,5 +7,5 @@ garment asset directory), ``motion`` (a user's body motion: npz or a folder of O
 USD, PLY/OBJ sequences), ``atomic`` (temp file + rename; the output path checks ``write_target`` and
 ``ensure_folder``), ``limits`` (the bounds on what an untrusted file may make PGC read or parse, and the
 limited JSON/TOML readers ``read_json``/``read_toml``), ``lock`` (the output folder lock), ``timings``
-(timings.json). Layouts: docs/conventions.md.
+(timings.json), ``light_record`` (the light a run was rendered and evaluated under). Layouts: docs/conventions.md.
 """

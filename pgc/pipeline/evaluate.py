@@ -4,6 +4,9 @@ Ground truth: for a synthetic capture, the run's own frames are rendered with th
 on matching geometry: the ground-truth garment is tied to the reconstructed rest garment
 (:mod:`pgc.pipeline.transfer`) and carried along its simulated motion; the body follows the run's motion.
 For a folder of images, ``frame_XXXX_CAMERA.png`` files are compared directly.
+Light: the ground truth is lit as the renders were (``render.json`` field ``light``,
+:mod:`pgc.io.light_record`): the capture light, or the same environment map file turned by the same angle per
+frame, scaled by the capture's true radiance. What cannot be reproduced or checked is refused.
 Metrics are restricted to the garment: the union of the ground-truth garment coverage and the rendered
 alpha (both over black).
 """
@@ -70,27 +73,55 @@ def rendered_frames(run_dir: Path) -> tuple[dict[str, Any], list[int]]:
     return meta, list(frames)
 
 
-def ground_truth_key(run_dir: Path, capture_dir: Path, camera_names: list[str], cfg: RunConfig) -> str:
-    """The cache key of a run's ground-truth renders: the run's simulation, the cameras, the capture's scene and
-    the configuration's scene renderer (implementation, options, version)."""
+def ground_truth_key(run_dir: Path, capture_dir: Path, camera_names: list[str], cfg: RunConfig,
+                     light: dict[str, Any] | None = None) -> str:
+    """The cache key of a run's ground-truth renders: the run's simulation, the cameras, the capture's scene,
+    the configuration's scene renderer (implementation, options, version) and the light's identity
+    (:func:`pgc.io.light_record.identity`; default the capture light), so relit and unrelit truth never mix."""
     from pgc.pipeline.cache import content_key, file_key
 
     return content_key("gt", file_key(run_dir / "garment.npz"), file_key(run_dir / "body.npz"), camera_names,
-                       file_key(capture_dir / "ground_truth" / "scene.json"), cfg.role_key("scene_renderer"))
+                       file_key(capture_dir / "ground_truth" / "scene.json"), cfg.role_key("scene_renderer"),
+                       light or {"kind": "capture"})
+
+
+def check_scene_renderer_light(renderer: Any, record: dict[str, Any], cfg: RunConfig) -> None:
+    """Refuse a light ``renderer`` (the configuration's scene renderer) does not declare in ``light_kinds``."""
+    from pgc.io.light_record import SCENE_LIGHT, describe
+
+    need = SCENE_LIGHT.get(record["kind"], record["kind"])
+    kinds = tuple(getattr(renderer, "light_kinds", ("constant",)))
+    if need not in kinds:
+        name = cfg.role_key("scene_renderer")["name"]
+        raise PGCDataError(f"the frames were lit by {describe(record)}, which the scene renderer '{name}' cannot "
+                           f"reproduce (it renders {', '.join(kinds)} lights); choose a [scene_renderer] that "
+                           f"renders '{need}' lights, or evaluate frames rendered under the capture light "
+                           "(pgc render RUN without --light)")
 
 
 def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], camera_names: list[str],
-                           spp: int, cfg: RunConfig, reporter: Reporter) -> list[dict[str, np.ndarray]]:
-    """Ground-truth renders of the run's frames by ``cfg``'s scene renderer (cached in
-    ``RUN/gt/<ground_truth_key>``)."""
+                           spp: int, cfg: RunConfig, reporter: Reporter,
+                           light: dict[str, Any] | None = None) -> list[dict[str, np.ndarray]]:
+    """Ground-truth renders of the run's frames by ``cfg``'s scene renderer under ``light`` (a checked record of
+    :func:`pgc.io.light_record.render_light`; default the capture light; an environment map is scaled by the
+    capture's true radiance and turned per frame), cached in ``RUN/gt/<ground_truth_key>``."""
     from pgc.io.asset import read_asset
     from pgc.io.capture import read_capture
+    from pgc.io.images import read_envmap
+    from pgc.io.light_record import capture_record, identity, rotation_at
     from pgc.pipeline.transfer import embed, place
     from pgc.synth.frames import render_frames
     from pgc.synth.ground_truth import read_ground_truth
     from pgc.synth.render import scene_renderer
+    from pgc.types import Light
 
-    cache = run_dir / "gt" / ground_truth_key(run_dir, capture_dir, camera_names, cfg)  # never a stale frame
+    light = light or capture_record()
+    renderer = None
+    if light["kind"] != "capture":  # refused before anything is read or rendered
+        renderer = scene_renderer(cfg)
+        check_scene_renderer_light(renderer, light, cfg)
+    key = ground_truth_key(run_dir, capture_dir, camera_names, cfg, identity(light, frames))
+    cache = run_dir / "gt" / key  # never a stale frame
     paths = [cache / f"frame_{t:04d}_spp{spp}.npz" for t in frames]
     if all(p.is_file() for p in paths):
         return [dict(np.load(p)) for p in paths]
@@ -109,8 +140,12 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
                            f"({len(garment)} garment, {len(body)} body)")
     embedding = embed(gt.garment.vertices, asset.garment)
     gt_garment = np.stack([place(embedding, asset.garment, garment[t]) for t in frames])
-    out = render_frames(gt, gt_garment, body[frames], cameras, spp=spp, reporter=reporter,
-                        renderer=scene_renderer(cfg))
+    lights = None
+    if light["kind"] == "envmap":
+        envmap = read_envmap(light.get("path") or light["file"])
+        lights = [Light(gt.light.radiance, envmap=envmap, rotation_deg=rotation_at(light, t)) for t in frames]
+    out = render_frames(gt, gt_garment, body[frames], cameras, lights, spp=spp, reporter=reporter,
+                        renderer=renderer or scene_renderer(cfg))
     for p, frame in zip(paths, out):
         save_npz(p, **frame)
     return out
@@ -118,19 +153,24 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
 
 def evaluate_run(run_dir: str | Path, gt: str | Path, cfg: RunConfig, reporter: Reporter | None = None,
                  out: str | Path | None = None) -> dict[str, Any]:
-    """Metrics per frame and mean for every variant; written to ``out`` (default RUN/metrics.json)."""
+    """Metrics per frame and mean for every variant, with the light the renders and the ground truth share
+    (field ``light``); written to ``out`` (default RUN/metrics.json)."""
+    from pgc.io.light_record import public
+
     reporter = reporter or Reporter.silent()
     run_dir, gt = Path(run_dir), Path(gt)
     meta, frames = rendered_frames(run_dir)
     fix = f"run 'pgc render {run_dir}' (again)"
     for t in frames:  # before the ground truth is rendered
         check_frame_arrays(run_dir / "render" / f"frame_{t:04d}.npz", fix)
+    light = run_light(run_dir, meta, frames)
     metrics = cfg.roles["metric"].create_all()
     if (gt / "ground_truth").is_dir() or (gt / "scene.json").is_file():
         truth = synthetic_ground_truth(run_dir, gt if (gt / "ground_truth").is_dir() else gt.parent, frames,
-                                       meta["cameras"], cfg.stage("eval").gt_spp, cfg, reporter)
+                                       meta["cameras"], cfg.stage("eval").gt_spp, cfg, reporter, light)
         targets = [(f["color"] * f["garment_mask"][..., None], f["garment_mask"]) for f in truth]
     else:
+        check_folder_light(gt, light, frames, run_dir)
         targets = [_image_folder_frame(gt, t, meta["cameras"]) for t in frames]
     per_frame: dict[str, list[dict[str, float]]] = {k: [] for k in VARIANTS}
     with reporter.stage("eval", total=len(frames)) as st:
@@ -150,12 +190,46 @@ def evaluate_run(run_dir: str | Path, gt: str | Path, cfg: RunConfig, reporter: 
                 per_frame[key].append(row)
             st.progress(i + 1)
     result: dict[str, Any] = {"run": str(run_dir), "ground_truth": str(gt), "frames": frames,
-                              "cameras": meta["cameras"], "kernel_size": meta.get("kernel_size")}
+                              "cameras": meta["cameras"], "kernel_size": meta.get("kernel_size"),
+                              "light": public(light, frames)}
     for key, rows in per_frame.items():
         result[key] = {name: float(np.mean([r[name] for r in rows])) for name in metrics}
         result[key]["per_frame"] = rows
     write_json(Path(out) if out else run_dir / "metrics.json", result)
     return result
+
+
+def run_light(run_dir: Path, meta: dict[str, Any], frames: list[int]) -> dict[str, Any]:
+    """The checked light record of the run's renders (:func:`pgc.io.light_record.render_light`)."""
+    from pgc.io.light_record import render_light
+
+    fix = (f"render again with 'pgc render {run_dir} --light ENV.exr [--rotate-light]' (or without --light for "
+           "the capture light)")
+    return render_light(meta, run_dir / "render" / "render.json", frames, fix)
+
+
+def check_folder_light(folder: Path, light: dict[str, Any], frames: list[int], run_dir: Path) -> None:
+    """Refuse a folder of ground-truth images lit otherwise than the renders: its ``light.json`` must give the
+    same light on every evaluated frame; without one, only renders of the capture light are compared."""
+    from pgc.io.light_record import GT_LIGHT_FILE, check_record, describe, same_light
+
+    path = folder / GT_LIGHT_FILE
+    if not path.is_file():
+        if light["kind"] != "capture":
+            raise PGCDataError(f"ground-truth folder {folder}: no {GT_LIGHT_FILE} says which light its images were "
+                               f"rendered under, and the run's frames were lit by {describe(light)}; add "
+                               f"{GT_LIGHT_FILE} (the light record of docs/pipeline.md, 'Relit evaluation') or "
+                               "give a synthetic capture as --gt")
+        return
+    fix = f"give ground truth rendered under the run's light, or render {run_dir} under the folder's"
+    try:
+        doc = read_json(path, GT_LIGHT_FILE)
+    except PGCDataError as exc:
+        raise PGCDataError(f"{exc}; {fix}") from None
+    record = check_record(doc, str(path), fix)
+    if not same_light(record, light, frames):
+        raise PGCDataError(f"ground-truth folder {folder}: its images were rendered under {describe(record)} "
+                           f"({GT_LIGHT_FILE}), the run's frames under {describe(light)}; {fix}")
 
 
 FRAME_ARRAYS = ("hybrid", "near", "pbr", "alpha", "pbr_alpha")

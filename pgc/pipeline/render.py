@@ -178,14 +178,35 @@ def envmap_light(run_dir: str | Path, path: str | Path) -> Light:
     return Light(asset.light.radiance, envmap=envmap)
 
 
+def light_record(light: Light | None, light_file: str | Path | None, asset_light: Light, frames: list[int],
+                 rotations: list[float]) -> dict[str, Any]:
+    """The record of the light the frames are rendered under (:mod:`pgc.io.light_record`): the capture light
+    (``light`` None, or a constant light equal to the asset's fitted one), an environment map read from
+    ``light_file`` with the rotation of each frame (degrees), or, for a light ``pgc eval`` cannot reproduce (an
+    environment map given without its file, another constant light), its kind without a file."""
+    from pgc.io.light_record import capture_record, envmap_record
+
+    if light is None or (light.envmap is None and np.allclose(light.radiance, asset_light.radiance)):
+        return capture_record()
+    if light.envmap is None:
+        return {"kind": "constant", "radiance": light.radiance.tolist()}
+    if light_file is None:
+        return {"kind": "envmap", "file": None}
+    if len(set(rotations)) > 1:
+        return envmap_record(light_file, frames, rotations)
+    return envmap_record(light_file, frames, rotations[0] if rotations else light.rotation_deg)
+
+
 def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
                reporter: Reporter | None = None, rotate_light: bool = False,
-               decide: Callable[[HybridRenderer, Capture], KernelDecision] | None = None) -> Path:
+               decide: Callable[[HybridRenderer, Capture], KernelDecision] | None = None,
+               light_file: str | Path | None = None) -> Path:
     """Render the run's frames (every ``frame_stride``-th) from ``views`` capture cameras under ``light`` (the
     asset's fitted light by default); with ``rotate_light`` the environment turns 360 degrees about +Y over the
     rendered frames. ``decide(renderer, capture)`` gives the kernel rule's decision (default :func:`choose_kernel`
     with ``cfg``); it is called only when the stage is computed, so ``pgc demo`` passes one that decides once for
-    all motions of its asset."""
+    all motions of its asset. ``light_file``: the environment map file ``light`` was read from, recorded in
+    ``render.json`` (name, path, sha256, rotation per frame) so that ``pgc eval`` renders the truth under it."""
     from pgc.io.asset import read_asset
     from pgc.io.capture import read_capture
     from pgc.pipeline.evaluate import render_inputs
@@ -200,12 +221,15 @@ def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
     settings = cfg.stage("render")
     renderer = HybridRenderer(asset, cfg)
     run_light = light or asset.light
+    source = light_record(light, light_file, asset.light, [], [])
+    # the light file's name, path and sha256 are part of the key (a capture-light run's key is unchanged)
+    recorded = ({k: source.get(k) for k in ("kind", "file", "path", "sha256")},) if source["kind"] != "capture" else ()
     key = content_key("render", file_key(run_dir / "garment.npz"),
                       asset_key(meta["asset"]), settings, rotate_light,
                       [cfg.role_key(r) for r in ("splat_renderer", "pbr_renderer", "filter")
                        + (("metric",) if settings.kernel.mode == "metric" else ())],
                       {"radiance": run_light.radiance.tolist(), "rotation": run_light.rotation_deg,
-                       "envmap": None if run_light.envmap is None else array_key(run_light.envmap)})
+                       "envmap": None if run_light.envmap is None else array_key(run_light.envmap)}, *recorded)
 
     def compute(folder: Path):
         with reporter.stage("choose_kernel") as st:
@@ -215,10 +239,12 @@ def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
         with np.load(run_dir / "body.npz") as z:
             body_vertices, body_faces = z["vertices"], z["faces"]
         frames = list(range(0, len(vertices), settings.frame_stride))
+        rotations = [360.0 * i / len(frames) if rotate_light else run_light.rotation_deg for i in range(len(frames))]
+        record = light_record(light, light_file, asset.light, frames, rotations)
         cameras = spread(capture.cameras, settings.views)
         with reporter.stage("render_frames", total=len(frames) * len(cameras)) as st:
             for i, t in enumerate(frames):
-                frame_light = replace(run_light, rotation_deg=360.0 * i / len(frames)) if rotate_light else run_light
+                frame_light = replace(run_light, rotation_deg=rotations[i])
                 body = Mesh(body_vertices[t], body_faces, name="body")
                 per_cam = [renderer.frame(vertices[t].astype(np.float64), cam, frame_light, kernel, body)
                            for cam in cameras]
@@ -227,7 +253,7 @@ def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
         meta_out = {"frames": frames, "cameras": [c.name for c in cameras], **kernel.to_json(),
                     "inputs": render_inputs(run_dir),
                     "light": {"radiance": run_light.radiance.tolist(), "envmap": run_light.envmap is not None,
-                              "rotating": rotate_light}}
+                              "rotating": rotate_light, **record}}
         write_json(folder / "render.json", meta_out)
         return meta_out, {"kernel_size": kernel.kernel_size, "frames": len(frames), "views": len(cameras)}
 

@@ -120,8 +120,8 @@ def _motion_section(view: RunView, f: _Figures) -> str:
             heat.append(f.img(hname, f"{label} error" + (f" (PSNR {psnr:.2f} dB, motion mean)" if psnr else ""),
                               "crop"))
     if relit:
-        heat.append("<p class='note'>This run is relit: the ground truth was rendered under the capture light, so "
-                    "no ground truth or error heatmaps are shown.</p>")
+        heat.append("<p class='note'>This run is relit: its ground truth and error heatmaps are not shown here "
+                    "(its metrics, when evaluated under its light, are in the metric section).</p>")
     elif gt is None:
         heat.append("<p class='note'>No ground truth for this run: error heatmaps need a synthetic capture "
                     "(<code>pgc eval RUN CAPTURE</code> renders it).</p>")
@@ -201,6 +201,20 @@ def is_relit(view: RunView) -> bool:
     return bool(light.get("rotating") or light.get("envmap"))
 
 
+def metrics_under_render_light(view: RunView) -> bool:
+    """Whether the run's metrics compare its frames with ground truth lit as they were: ``metrics.json`` records
+    the same light as ``render.json``; metrics that record no light count only for an unrelit run."""
+    from pgc.io.light_record import capture_record, same_light
+
+    measured = (view.metrics or {}).get("light")
+    if not isinstance(measured, dict):
+        return not is_relit(view)
+    rendered = view.render.get("light")
+    if not (isinstance(rendered, dict) and "kind" in rendered):
+        rendered = None if is_relit(view) else capture_record()
+    return rendered is not None and same_light(measured, rendered, view.frames)
+
+
 def _relight_section(view: RunView, preds: list[dict], box, k: int, f: _Figures, slug: str, frame_ms: int) -> str:
     if not view.render.get("light", {}).get("rotating"):
         return ""
@@ -273,15 +287,25 @@ def build_report(out: Path, title: str, views: list[RunView], summary: dict[str,
     f = _Figures(out)
     sections = "".join(_motion_section(v, f) for v in views)
     per_motion = {v.motion: {key: {n: x for n, x in v.metrics[key].items() if n != "per_frame"} for key in VARIANTS}
-                  for v in views if v.metrics and not is_relit(v) and all(key in v.metrics for key in VARIANTS)}
+                  for v in views if v.metrics and metrics_under_render_light(v)
+                  and all(key in v.metrics for key in VARIANTS)}
     charts = []
     if per_motion:
+        from pgc.io.light_record import describe
+
+        lit = {}  # light -> motions
+        for v in views:
+            if v.motion in per_motion:
+                lit.setdefault(describe(v.metrics.get("light", {"kind": "capture"})), []).append(v.motion)
         figs.metrics_chart(f.path("metrics.svg"), per_motion)
         charts.append(f"<h2>Metrics per motion</h2><p class='note'>Restricted to the garment (mean over rendered "
-                      "frames and cameras). PSNR, SSIM, FSIM: higher is better; LPIPS: lower.</p>"
+                      "frames and cameras). PSNR, SSIM, FSIM: higher is better; LPIPS: lower. Ground truth lit as "
+                      "the frames: " + "; ".join(f"{html.escape(k)} ({html.escape(', '.join(m))})"
+                                                 for k, m in lit.items()) + ".</p>"
                       f"{f.img('metrics.svg', 'metrics per motion and variant')}{_metric_table(per_motion)}")
     else:
-        why = ("Relit: the ground truth's light differs, so no metrics are shown." if all(map(is_relit, views))
+        why = ("Relit: no metrics against ground truth under the frames' light yet; <code>pgc eval RUN --gt "
+               "CAPTURE</code> renders it." if all(map(is_relit, views))
                else "Not evaluated: <code>pgc eval RUN CAPTURE</code> writes RUN/metrics.json.")
         charts.append(f"<h2>Metrics</h2><p class='note'>{why}</p>")
     stages, steps = summary.get("stages", {}), summary.get("seconds", {})

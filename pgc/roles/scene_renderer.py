@@ -17,6 +17,9 @@ Contract
   the mean base colour over covered samples (0 where nothing is hit), 'depth' (H, W) the mean camera z in
   metres over covered samples (0 where nothing is hit), 'garment_coverage' (H, W) the garment's fraction
   (:func:`pgc.synth.render.layers_from_samples` turns per-sample hits into these layers).
+- :attr:`SceneRenderer.light_kinds` names the kinds of :class:`pgc.types.Light` it renders: ``"constant"``
+  (radiance only) always; ``"envmap"`` (a latitude-longitude map turned ``rotation_deg`` about +Y) when it
+  declares it. ``pgc eval`` refuses to render ground truth under a kind that is not declared.
 - Every output is finite; outputs of one implementation are deterministic for fixed inputs.
 """
 
@@ -36,6 +39,8 @@ if TYPE_CHECKING:
 
 class SceneRenderer(RoleImplementation, ABC):
     role = "scene_renderer"
+    light_kinds: tuple[str, ...] = ("constant",)
+    """The :class:`pgc.types.Light` kinds this renderer reproduces: ``"constant"``, and ``"envmap"`` if declared."""
 
     @abstractmethod
     def build_scene(self, geometry: SceneGeometry | None, light: Light) -> tuple[Any, dict[str, int]]:

@@ -32,14 +32,15 @@ def _as_sequence(name: str, array: np.ndarray, vertex_count: int) -> np.ndarray:
 
 
 def render_frames(scene_dir_or_gt: str | os.PathLike | GroundTruth, garment_vertices: np.ndarray,
-                  body_vertices: np.ndarray, cameras: list[Camera], light: Light | None = None,
+                  body_vertices: np.ndarray, cameras: list[Camera], light: Light | list[Light] | None = None,
                   spp: int | None = None, seed: int = 0, gt_samples: int = 2, sampler: str = "ldsampler",
                   reporter: Reporter | None = None, *, renderer: SceneRenderer) -> list[dict[str, np.ndarray]]:
     """Render T frames of the ground-truth scene with new vertices, by ``renderer`` (the configuration's, see
     :func:`pgc.synth.render.scene_renderer`).
 
     garment_vertices (T, Vg, 3) and body_vertices (T, Vb, 3) (metres; the topology of the capture's
-    ground-truth meshes); ``light`` defaults to the capture light; ``spp`` to 64 (of Mitsuba's ``sampler``;
+    ground-truth meshes); ``light`` (one for every frame, or a list of one per frame) defaults to the capture
+    light; ``spp`` to 64 (of Mitsuba's ``sampler``;
     the low-discrepancy sampler needs powers of 4). Returns one dict per
     frame with per-camera lists: 'color' (H, W, 3) linear RGB over the light's background, 'alpha' (H, W)
     coverage, 'garment_mask' (H, W) garment coverage, 'segmentation' (H, W) labels. Fibres and the
@@ -52,14 +53,16 @@ def render_frames(scene_dir_or_gt: str | os.PathLike | GroundTruth, garment_vert
         raise PGCDataError(f"render_frames: {len(gv)} garment frames but {len(bv)} body frames")
     if not cameras:
         raise PGCDataError("render_frames: no cameras given")
-    light = light or gt.light
+    lights = light if isinstance(light, list) else [light or gt.light] * len(gv)
+    if len(lights) != len(gv):
+        raise PGCDataError(f"render_frames: {len(lights)} lights for {len(gv)} frames")
     spp = DEFAULT_FRAME_SPP if spp is None else int(spp)
     reporter = reporter or Reporter.silent()
     frames = []
     with reporter.stage("render_gt_frames", total=len(gv), spp=spp) as st:
         for t in range(len(gv)):
             geometry = gt.geometry(gv[t], bv[t])
-            scene, labels = renderer.build_scene(geometry, light)
+            scene, labels = renderer.build_scene(geometry, lights[t])
             out: dict[str, list[np.ndarray]] = {"color": [], "alpha": [], "garment_mask": [], "segmentation": []}
             for c, cam in enumerate(cameras):
                 color, _ = renderer.render_color(scene, cam, spp, seed * 100003 + t * 1009 + c, sampler)
@@ -79,7 +82,9 @@ def render_frames_files(gt_dir: str | os.PathLike, garment_npz: str | os.PathLik
                         reporter: Reporter | None = None, *, renderer: SceneRenderer) -> list[Path]:
     """File front end of :func:`render_frames` (``pgc synth render-frames``): vertices from .npz files
     (key 'vertices', (T, V, 3)), cameras from the capture (default), one .npz per frame written to
-    ``out_dir`` (color, alpha, garment_mask, segmentation: stacked over cameras) plus sRGB PNGs."""
+    ``out_dir`` (color, alpha, garment_mask, segmentation: stacked over cameras) plus sRGB PNGs; under the
+    capture light (``light`` None) also ``light.json`` (:mod:`pgc.io.light_record`), which ``pgc eval`` compares
+    with a run's render light when the folder is its ``--gt``."""
     from pgc.io.atomic import atomic_open
     from pgc.io.capture import read_capture
     from pgc.io.images import write_image
@@ -107,4 +112,9 @@ def render_frames_files(gt_dir: str | os.PathLike, garment_npz: str | os.PathLik
         for c, cam in enumerate(cameras):
             write_image(out_dir / f"frame_{t:04d}_{cam.name}.png", frame["color"][c])
         written.append(path)
+    if light is None:
+        from pgc.io.atomic import write_json
+        from pgc.io.light_record import GT_LIGHT_FILE, capture_record
+
+        write_json(out_dir / GT_LIGHT_FILE, capture_record())
     return written
