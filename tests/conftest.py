@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -94,6 +96,24 @@ def small_capture() -> Capture:
     return make_capture()
 
 
+def install_distribution(site: Path, monkeypatch: pytest.MonkeyPatch, name: str, modules: dict[str, str],
+                         entry_points: dict[str, str]) -> Path:
+    """Install a plugin distribution ``name`` (version 0.1) into the folder ``site``, put on ``sys.path`` for the
+    test: ``modules`` maps module names to their source, ``entry_points`` names to modules (group ``pgc``)."""
+    import importlib
+
+    site.mkdir(parents=True, exist_ok=True)
+    for module, source in modules.items():
+        (site / f"{module}.py").write_text(source)
+    info = site / f"{name.replace('-', '_')}-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {name}\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[pgc]\n" + "".join(f"{k} = {v}\n" for k, v in entry_points.items()))
+    monkeypatch.syspath_prepend(str(site))
+    importlib.invalidate_caches()
+    return site
+
+
 @pytest.fixture(scope="session")
 def default_scene_renderer():
     """The scene renderer of the default configuration (Mitsuba), as ``pgc synth`` without ``--config`` uses."""
@@ -158,19 +178,8 @@ def fake_distribution(tmp_path, monkeypatch):
     """A real installed distribution in a temporary folder on sys.path (a *.dist-info with entry points):
     one good plugin, one with a missing dependency, one that raises on import, one duplicate.
     Returns the folder (put it on PYTHONPATH for subprocesses)."""
-    import importlib
     import sys
 
-    site = tmp_path / "site"
-    site.mkdir()
-    for module, source in FAKE_PLUGINS.items():
-        (site / f"{module}.py").write_text(source)
-    info = site / "tmp_pgc_plugins-0.1.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {FAKE_DIST}\nVersion: 0.1\n")
-    (info / "entry_points.txt").write_text("[pgc]\n" + "".join(f"{e} = {m}\n" for e, m in FAKE_ENTRY_POINTS.items()))
-    monkeypatch.syspath_prepend(str(site))
-    importlib.invalidate_caches()
-    yield site
+    yield install_distribution(tmp_path / "site", monkeypatch, FAKE_DIST, FAKE_PLUGINS, FAKE_ENTRY_POINTS)
     for module in FAKE_PLUGINS:
         sys.modules.pop(module, None)

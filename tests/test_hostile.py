@@ -20,7 +20,7 @@ from typing import Callable
 import numpy as np
 import pytest
 
-from conftest import make_capture, seamed_cube
+from conftest import install_distribution, make_capture, seamed_cube
 from pgc.cli import main
 from pgc.errors import PGCDataError
 from pgc.io.asset import write_asset
@@ -912,19 +912,10 @@ def test_hostile_colmap_model_is_refused_naming_the_file(name, tmp_path):
 @pytest.fixture
 def exiting_plugin(tmp_path, monkeypatch):
     """An installed distribution whose plugin calls sys.exit on import, and one that raises."""
-    import importlib
-
-    site = tmp_path / "site"
-    site.mkdir()
-    (site / "hostile_exit.py").write_text("import sys\nsys.exit(3)\n")
-    (site / "hostile_raise.py").write_text("raise RuntimeError('needs libbar.so')\n")
-    info = site / "hostile_plugins-0.1.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: hostile-plugins\nVersion: 0.1\n")
-    (info / "entry_points.txt").write_text("[pgc]\nhostileexit = hostile_exit\nhostileraise = hostile_raise\n")
-    monkeypatch.syspath_prepend(str(site))
-    importlib.invalidate_caches()
-    return site
+    return install_distribution(tmp_path / "site", monkeypatch, "hostile-plugins",
+                                {"hostile_exit": "import sys\nsys.exit(3)\n",
+                                 "hostile_raise": "raise RuntimeError('needs libbar.so')\n"},
+                                {"hostileexit": "hostile_exit", "hostileraise": "hostile_raise"})
 
 
 def test_a_plugin_exiting_on_import_is_reported_not_fatal(exiting_plugin, capsys):

@@ -19,7 +19,7 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import seamed_cube, tilted_camera
+from conftest import install_distribution, seamed_cube, tilted_camera
 from pgc.cli import main, os_error_message
 from pgc.errors import PGCDataError
 from pgc.registry import default_registry
@@ -450,17 +450,12 @@ def test_an_unreachable_scheduler_is_named_with_how_to_start_one(world, tmp_path
 @pytest.fixture
 def interrupting_plugins(tmp_path, monkeypatch):
     """Installed plugins that raise KeyboardInterrupt: on import, and in their registration hook."""
-    site = tmp_path / "site"
-    site.mkdir()
-    (site / "hostile_kbi.py").write_text("raise KeyboardInterrupt('plugin asks to stop')\n")
-    (site / "hostile_kbi_hook.py").write_text("from pgc.registry import hookimpl\n\n@hookimpl\n"
-                                              "def pgc_register_implementations():\n    raise KeyboardInterrupt\n")
-    info = site / "hostile_kbi-0.1.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: hostile-kbi\nVersion: 0.1\n")
-    (info / "entry_points.txt").write_text("[pgc]\nhostilekbi = hostile_kbi\nhostilekbihook = hostile_kbi_hook\n")
-    monkeypatch.syspath_prepend(str(site))
-    importlib.invalidate_caches()
+    site = install_distribution(
+        tmp_path / "site", monkeypatch, "hostile-kbi",
+        {"hostile_kbi": "raise KeyboardInterrupt('plugin asks to stop')\n",
+         "hostile_kbi_hook": "from pgc.registry import hookimpl\n\n@hookimpl\n"
+                             "def pgc_register_implementations():\n    raise KeyboardInterrupt\n"},
+        {"hostilekbi": "hostile_kbi", "hostilekbihook": "hostile_kbi_hook"})
     yield site
     for name in ("hostile_kbi", "hostile_kbi_hook"):
         sys.modules.pop(name, None)

@@ -8,7 +8,7 @@ import re
 
 import pytest
 
-from conftest import FAKE_DIST
+from conftest import FAKE_DIST, install_distribution
 from pgc.cli import main
 from pgc.errors import PGCConfigError, PGCPluginError
 from pgc.registry import ROLES, BLOCK_ENV, ImplementationSpec, Registry
@@ -161,19 +161,11 @@ BAD_REASONS = {
 def bad_plugins(tmp_path, monkeypatch):
     """An installed distribution ``bad-pgc-plugins`` (entry point ``badplug``) registering filters whose factories do
     not implement the role: not a subclass, an abstract method left, an import that fails, a bad options model."""
-    import importlib
     import sys
 
-    site = tmp_path / "site"
-    site.mkdir()
-    (site / "badplug.py").write_text(BAD_PLUGIN)
-    (site / "badplug_impl.py").write_text("raise ImportError('badplug_impl needs libbaz.so.1')\n")
-    info = site / "bad_pgc_plugins-0.1.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: bad-pgc-plugins\nVersion: 0.1\n")
-    (info / "entry_points.txt").write_text("[pgc]\nbadplug = badplug\n")
-    monkeypatch.syspath_prepend(str(site))
-    importlib.invalidate_caches()
+    install_distribution(tmp_path / "site", monkeypatch, "bad-pgc-plugins",
+                         {"badplug": BAD_PLUGIN, "badplug_impl": "raise ImportError('badplug_impl needs libbaz.so.1')\n"},
+                         {"badplug": "badplug"})
     yield tmp_path
     for module in ("badplug", "badplug_impl"):
         sys.modules.pop(module, None)

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import install_distribution
 from pgc.errors import PGCDataError
 from pgc.types import Camera, Material, Mesh
 
@@ -358,15 +359,8 @@ def recording_renderer(tmp_path, monkeypatch):
     import importlib
     import sys
 
-    site = tmp_path / "site"
-    site.mkdir()
-    (site / "recplug.py").write_text(RECORDING_PLUGIN)
-    info = site / "rec_pgc_plugin-0.1.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: rec-pgc-plugin\nVersion: 0.1\n")
-    (info / "entry_points.txt").write_text("[pgc]\nrecplug = recplug\n")
-    monkeypatch.syspath_prepend(str(site))
-    importlib.invalidate_caches()
+    install_distribution(tmp_path / "site", monkeypatch, "rec-pgc-plugin", {"recplug": RECORDING_PLUGIN},
+                         {"recplug": "recplug"})
     yield importlib.import_module("recplug")
     sys.modules.pop("recplug", None)
 
