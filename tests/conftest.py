@@ -115,6 +115,16 @@ def install_distribution(site: Path, monkeypatch: pytest.MonkeyPatch, name: str,
 
 
 @pytest.fixture(scope="session")
+def tiny_demo(tmp_path_factory) -> Path:
+    """``pgc demo --preset tiny``, run once a session; its users copy what they change."""
+    from pgc.cli import main
+
+    out = tmp_path_factory.mktemp("tiny_demo") / "demo"
+    assert main(["demo", "--preset", "tiny", "--out", str(out), "--quiet"]) == 0
+    return out
+
+
+@pytest.fixture(scope="session")
 def default_scene_renderer():
     """The scene renderer of the default configuration (Mitsuba), as ``pgc synth`` without ``--config`` uses."""
     from pgc.config import load

@@ -260,9 +260,8 @@ def _scores(run: Path, light: dict | None) -> dict[str, dict[str, float]]:
 
 
 @pytest.mark.slow
-def test_relit_renders_are_evaluated_against_relit_truth(tmp_path, capsys):
-    demo = tmp_path / "demo"
-    assert main(["demo", "--preset", "tiny", "--out", str(demo), "--quiet"]) == 0
+def test_relit_renders_are_evaluated_against_relit_truth(tiny_demo, tmp_path, capsys):
+    demo = tiny_demo
     run = tmp_path / "relit"
     shutil.copytree(demo / "runs" / "spooky", run)
     sky = tmp_path / "sky.exr"

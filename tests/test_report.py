@@ -23,10 +23,8 @@ CHROMIUM = next((c for c in ("chromium", "chromium-browser", "google-chrome") if
 
 
 @pytest.fixture(scope="session")
-def demo(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("report") / "demo"
-    assert main(["demo", "--preset", "tiny", "--out", str(out), "--quiet"]) == 0
-    return out
+def demo(tiny_demo) -> Path:
+    return tiny_demo
 
 
 @pytest.fixture(scope="session")
