@@ -40,27 +40,6 @@ MULTI_ROLES = {"metric"}
 """Roles of which every listed implementation is used (not only the first available)."""
 
 
-STAGES: dict[str, str] = {
-    "garment": "pgc.pipeline.settings_garment:GarmentSettings",
-    "fit_splats": "pgc.roles.splat_renderer:FitSplatsSettings",
-    "base_color": "pgc.pipeline.settings_base_color:BaseColorSettings",
-    "material": "pgc.roles.pbr_renderer:MaterialFitSettings",
-    "animate": "pgc.pipeline.settings_animate:AnimateSettings",
-    "render": "pgc.pipeline.settings_render:RenderSettings",
-    "eval": "pgc.pipeline.settings_eval:EvalSettings",
-}
-"""Stage name -> its options model, by reference (as :data:`pgc.registry.ROLES` names the role interfaces): the
-``[stages.NAME]`` tables. The two fits' settings live with their role contracts; the pipeline-only ones in the
-pipeline's ``settings_<stage>.py`` modules, loaded only when a config is resolved."""
-
-
-def stage_settings() -> dict[str, type[Options]]:
-    """Stage name -> options model (:data:`STAGES`, resolved)."""
-    from pgc.registry import load_reference
-
-    return {name: load_reference(ref) for name, ref in STAGES.items()}
-
-
 def deep_merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
     out = copy.deepcopy(base)
     for key, value in override.items():
@@ -230,40 +209,35 @@ def resolve(data: dict[str, Any] | None = None, registry: Registry | None = None
                     raise
                 chosen = [impls[0]]
         roles[role] = RoleChoice(role, names, chosen or impls, options)
-    known = stage_settings()
-    stages: dict[str, Options] = {}
+    return RunConfig(roles, resolve_stages(stages_raw, roles, source), block, source)
+
+
+def resolve_stages(stages_raw: Any, roles: dict[str, RoleChoice], source: str) -> dict[str, Options]:
+    """Validate the ``[stages]`` tables against the stage declarations (:mod:`pgc.stages`): every declared stage's
+    settings (defaults where no table is given), then each stage's own rule (``Stage.check``)."""
+    from pgc.stages import declared
+
+    known = {name: stage for name, stage in declared().items() if stage.settings is not None}
     if not isinstance(stages_raw, dict):
         raise PGCConfigError(f"{source}: [stages] must be a table of stage tables")
-    for name, value in stages_raw.items():
+    for name in stages_raw:
         if name not in known:
             raise PGCConfigError(f"{source}: unknown stage [stages.{name}]; stages: {', '.join(sorted(known))}")
-    for name, model in known.items():
+    stages: dict[str, Options] = {}
+    for name, stage in known.items():
+        model = stage.settings
+        given = stages_raw.get(name, {})
         try:
-            stages[name] = model.model_validate(stages_raw.get(name, {}))
+            settings = model.model_validate(given)
         except pydantic.ValidationError as exc:
             problems = "; ".join(f"option '{'.'.join(str(p) for p in e['loc'])}': {e['msg']} (got {e.get('input')!r})"
                                  for e in exc.errors())
             raise PGCConfigError(f"{source}: [stages.{name}] {problems}; valid options: "
                                  f"{', '.join(model.model_fields)}") from None
-    _check_kernel_metric(stages, roles, stages_raw, source)
-    return RunConfig(roles, stages, block, source)
-
-
-def _check_kernel_metric(stages: dict[str, Options], roles: dict[str, RoleChoice], stages_raw: dict[str, Any],
-                         source: str) -> None:
-    """The kernel rule's mode 'metric' needs its metric among the run's. Asked for in the config, a missing one
-    is an error; as the default, the rule falls back to mode 'error' (an installation without the LPIPS
-    plugin still runs)."""
-    kernel = stages["render"].kernel
-    metrics = [i.name for i in roles["metric"].implementations] if "metric" in roles else []
-    if kernel.mode != "metric" or kernel.metric in metrics:
-        return
-    given = (stages_raw.get("render") or {}).get("kernel") or {}
-    if "mode" in given or "metric" in given:
-        raise PGCConfigError(f"{source}: [stages.render.kernel] metric = '{kernel.metric}' is not among the run's "
-                             f"metrics {metrics}; name one of them, or add it to [metric] use (and install its "
-                             "plugin)")
-    stages["render"] = stages["render"].model_copy(update={"kernel": kernel.model_copy(update={"mode": "error"})})
+        if stage.check is not None:
+            settings = stage.check(settings, given if isinstance(given, dict) else {}, roles, source)
+        stages[name] = settings
+    return stages
 
 
 def load(path: str | Path | None = None, registry: Registry | None = None,

@@ -253,10 +253,10 @@ def _int_fields(model: type[pydantic.BaseModel], prefix: str = "") -> list[tuple
 
 
 def all_integer_fields() -> list[tuple[str, type, str]]:
-    from pgc.config import stage_settings
+    from pgc.stages import settings_models
     from pgc.registry import Registry
 
-    fields = [(f"stages.{s}.{n}", m, k) for s, model in stage_settings().items() for n, m, k in _int_fields(model)]
+    fields = [(f"stages.{s}.{n}", m, k) for s, model in settings_models().items() for n, m, k in _int_fields(model)]
     for (role, name), impl in Registry.discover().implementations.items():
         try:
             model = impl.options_model()
@@ -280,9 +280,9 @@ def test_every_integer_option_of_every_schema_refuses_booleans_floats_and_huge_v
 
 
 def test_the_stage_settings_declare_and_describe_an_upper_bound_for_every_integer():
-    from pgc.config import stage_settings
+    from pgc.stages import settings_models
 
-    for stage, model in stage_settings().items():
+    for stage, model in settings_models().items():
         for name, field_model, _ in _int_fields(model):
             field = field_model.model_fields[name.rsplit(".", 1)[-1]]
             highs = [m.le for m in field.metadata if getattr(m, "le", None) is not None]

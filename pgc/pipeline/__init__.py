@@ -1,6 +1,4 @@
-"""The pipeline: stages (mesh -> garment -> fit_splats -> base_color -> material -> asset; animate -> render ->
-eval), cached by content (docs/architecture.md, "Stages: one name each").
-
-The options of the pipeline-only stages live in light modules ``settings_<stage>.py``; :data:`pgc.config.STAGES`
-names every stage's options model.
+"""The pipeline: what runs the declared stages (:mod:`pgc.stages`; mesh -> garment -> fit_splats -> base_color ->
+material -> asset; animate -> render -> eval) through one runner (:mod:`pgc.pipeline.runner`) and the stage
+cache, the demo and its report (docs/architecture.md, "Stages: one name each").
 """
