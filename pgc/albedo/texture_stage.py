@@ -25,9 +25,6 @@ from pgc.texture.backproject import ViewTexture, fill_holes, merge_views, projec
 from pgc.texture.color_correction import apply_color_matrix, fit_color_matrix
 from pgc.types import Capture, Mesh, View
 
-STAGE_VERSION = 2
-"""Bumped when the stage's algorithm changes, so cached results are recomputed."""
-
 
 @dataclass
 class BaseColorResult:

@@ -10,7 +10,9 @@ Run folder: ``run.json`` (asset, motion, fps, simulator, figures), ``garment.npz
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -19,14 +21,33 @@ from pgc.errors import PGCDataError
 from pgc.events import Reporter
 from pgc.io.atomic import write_json
 from pgc.io.limits import read_json
-from pgc.io.timings import split_timings, write_timings
-from pgc.pipeline.cache import StageCache, array_key, asset_key, content_key
+from pgc.io.timings import write_timings
+from pgc.pipeline.cache import StageCache, array_key, asset_key
+from pgc.pipeline.runner import StageContext, StageRunner, Step
 from pgc.pipeline.stage_io import save_npz
-from pgc.types import BodyMotion
+from pgc.stages import animate as animate_stage
+from pgc.types import BodyMotion, GarmentAsset
 
 
-CODE_VERSION = "2"
-"""Version of the code computing the animate stage (part of its cache key)."""
+@dataclass(frozen=True)
+class AnimateInputs:
+    asset: GarmentAsset
+    motion: BodyMotion
+
+
+def compute_animate(ctx: StageContext[AnimateInputs], folder: Path) -> tuple[np.ndarray, dict[str, Any]]:
+    """The garment's vertices per frame (T, V, 3), simulated by the configured simulator."""
+    sim = ctx.cfg.create("simulator").simulate(ctx.inputs.asset.garment, ctx.inputs.motion, ctx.reporter)
+    save_npz(folder / "garment.npz", vertices=sim.vertices)
+    return sim.vertices, sim.figures
+
+
+def load_animate(ctx: StageContext[AnimateInputs], folder: Path) -> np.ndarray:
+    return np.load(folder / "garment.npz")["vertices"]
+
+
+STAGES = ((animate_stage.STAGE, Step(compute_animate, load_animate)),)
+"""The stages of ``pgc animate``, each with its code."""
 
 
 def source_capture(asset_config: dict) -> Path | None:
@@ -65,19 +86,15 @@ def animate(asset_dir: str | Path, motion_spec: str, out: str | Path, cfg: RunCo
     capture = Path(capture_dir) if capture_dir else source_capture(asset.config)
     settings = cfg.stage("animate")
     motion = resolve_motion(motion_spec, capture, settings.seconds)
-    key = content_key("animate", asset_key(asset_dir), motion_spec, settings,
-                      cfg.role_key("simulator"), array_key(motion.vertices), array_key(motion.faces), motion.fps)
-
-    def compute(folder: Path):
-        sim = cfg.create("simulator").simulate(asset.garment, motion, reporter)
-        save_npz(folder / "garment.npz", vertices=sim.vertices)
-        return sim.vertices, sim.figures
-
-    result = StageCache(out / "stages").run("animate", key, compute,
-                                            lambda f: np.load(f / "garment.npz")["vertices"], CODE_VERSION)
-    save_npz(out / "garment.npz", vertices=result.value, faces=asset.garment.faces)
+    runner = StageRunner(StageCache(out / "stages"), StageContext(cfg, reporter, AnimateInputs(asset, motion)), {
+        "asset": asset_key(asset_dir), "motion": {"spec": motion_spec, "vertices": array_key(motion.vertices),
+                                                  "faces": array_key(motion.faces), "fps": motion.fps}})
+    for stage, step in STAGES:
+        runner.run(stage, step)
+    save_npz(out / "garment.npz", vertices=runner.ctx.values["animate"], faces=asset.garment.faces)
     save_npz(out / "body.npz", vertices=motion.vertices, faces=motion.faces)
-    figures, timings = split_timings(StageCache(out / "stages").figures("animate"))
+    figures, timings = runner.figures()
+    figures, timings = figures["animate"], (timings or {}).get("animate")
     write_timings(out, timings or {})
     write_json(out / "run.json", {  # last: a run folder with a run.json is complete
         "asset": str(asset_dir.resolve()), "capture": None if capture is None else str(capture.resolve()),

@@ -13,6 +13,7 @@ alpha (both over black).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +25,9 @@ from pgc.events import Reporter
 from pgc.io.atomic import write_json
 from pgc.io.limits import read_json
 from pgc.pipeline.animate import read_run
+from pgc.pipeline.runner import StageContext, StageRunner, Step
 from pgc.pipeline.stage_io import save_npz
+from pgc.stages import eval as eval_stage
 
 VARIANTS = {"hybrid": "hybrid", "3dgs_only": "near", "pbr_only": "pbr"}
 """Metric key -> the render layer it evaluates."""
@@ -75,13 +78,15 @@ def rendered_frames(run_dir: Path) -> tuple[dict[str, Any], list[int]]:
 
 def ground_truth_key(run_dir: Path, capture_dir: Path, camera_names: list[str], cfg: RunConfig,
                      light: dict[str, Any] | None = None) -> str:
-    """The cache key of a run's ground-truth renders: the run's simulation, the cameras, the capture's scene,
-    the configuration's scene renderer (implementation, options, version) and the light's identity
-    (:func:`pgc.io.light_record.identity`; default the capture light), so relit and unrelit truth never mix."""
+    """The cache key of a run's ground-truth renders: the eval stage's version, the run's simulation, the cameras,
+    the capture's scene, the configuration's scene renderer (implementation, options, version) and the light's
+    identity (:func:`pgc.io.light_record.identity`; default the capture light), so relit and unrelit truth never
+    mix."""
     from pgc.pipeline.cache import content_key, file_key
 
-    return content_key("gt", file_key(run_dir / "garment.npz"), file_key(run_dir / "body.npz"), camera_names,
-                       file_key(capture_dir / "ground_truth" / "scene.json"), cfg.role_key("scene_renderer"),
+    scene = file_key(capture_dir / "ground_truth" / "scene.json")
+    return content_key("gt", eval_stage.STAGE.version, file_key(run_dir / "garment.npz"),
+                       file_key(run_dir / "body.npz"), camera_names, scene, cfg.role_key("scene_renderer"),
                        light or {"kind": "capture"})
 
 
@@ -151,19 +156,27 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
     return out
 
 
-def evaluate_run(run_dir: str | Path, gt: str | Path, cfg: RunConfig, reporter: Reporter | None = None,
-                 out: str | Path | None = None) -> dict[str, Any]:
-    """Metrics per frame and mean for every variant, with the light the renders and the ground truth share
-    (field ``light``); written to ``out`` (default RUN/metrics.json)."""
+@dataclass(frozen=True)
+class EvalInputs:
+    """What the eval stage reads: the run folder, its checked render metadata, frames and light record, the
+    ground truth (a synthetic capture or an image folder) and where the metrics go (None: RUN/metrics.json)."""
+
+    run_dir: Path
+    gt: Path
+    meta: dict[str, Any]
+    frames: list[int]
+    light: dict[str, Any]
+    out: Path | None
+
+
+def compute_eval(ctx: StageContext[EvalInputs], folder: Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Every configured metric of every variant against the ground truth, per frame and mean; written to
+    ``out`` (default ``folder/metrics.json``, the run folder)."""
     from pgc.io.light_record import public
 
-    reporter = reporter or Reporter.silent()
-    run_dir, gt = Path(run_dir), Path(gt)
-    meta, frames = rendered_frames(run_dir)
+    inp, cfg, reporter = ctx.inputs, ctx.cfg, ctx.reporter
+    run_dir, gt, meta, frames, light = inp.run_dir, inp.gt, inp.meta, inp.frames, inp.light
     fix = f"run 'pgc render {run_dir}' (again)"
-    for t in frames:  # before the ground truth is rendered
-        check_frame_arrays(run_dir / "render" / f"frame_{t:04d}.npz", fix)
-    light = run_light(run_dir, meta, frames)
     metrics = cfg.roles["metric"].create_all()
     if (gt / "ground_truth").is_dir() or (gt / "scene.json").is_file():
         truth = synthetic_ground_truth(run_dir, gt if (gt / "ground_truth").is_dir() else gt.parent, frames,
@@ -195,8 +208,30 @@ def evaluate_run(run_dir: str | Path, gt: str | Path, cfg: RunConfig, reporter: 
     for key, rows in per_frame.items():
         result[key] = {name: float(np.mean([r[name] for r in rows])) for name in metrics}
         result[key]["per_frame"] = rows
-    write_json(Path(out) if out else run_dir / "metrics.json", result)
-    return result
+    write_json(inp.out or folder / "metrics.json", result)
+    return result, {}
+
+
+STAGES = ((eval_stage.STAGE, Step(compute_eval)),)
+"""The stages of ``pgc eval``, each with its code."""
+
+
+def evaluate_run(run_dir: str | Path, gt: str | Path, cfg: RunConfig, reporter: Reporter | None = None,
+                 out: str | Path | None = None) -> dict[str, Any]:
+    """Metrics per frame and mean for every variant, with the light the renders and the ground truth share
+    (field ``light``); written to ``out`` (default RUN/metrics.json)."""
+    from pgc.pipeline.cache import StageCache
+
+    run_dir, gt = Path(run_dir), Path(gt)
+    meta, frames = rendered_frames(run_dir)
+    fix = f"run 'pgc render {run_dir}' (again)"
+    for t in frames:  # before the ground truth is rendered
+        check_frame_arrays(run_dir / "render" / f"frame_{t:04d}.npz", fix)
+    inputs = EvalInputs(run_dir, gt, meta, frames, run_light(run_dir, meta, frames), Path(out) if out else None)
+    runner = StageRunner(StageCache(run_dir), StageContext(cfg, reporter or Reporter.silent(), inputs), {})
+    for stage, step in STAGES:
+        runner.run(stage, step)
+    return runner.ctx.values["eval"]
 
 
 def run_light(run_dir: Path, meta: dict[str, Any], frames: list[int]) -> dict[str, Any]:

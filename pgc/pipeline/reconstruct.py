@@ -1,10 +1,10 @@
 """``pgc reconstruct``: capture -> garment asset, every stage cached by content hash and resumable.
 
-Stages (declared in :mod:`pgc.stages`; folder ``OUT/stages/<name>``, options ``[stages.<name>]``): ``mesh`` (reconstructor: labelled full-body
-mesh with UVs) -> ``garment`` (the garment sub-mesh with its own UV atlas) -> ``fit_splats`` (mesh-embedded
-Gaussians fitted on the full mesh, then only the garment's kept) ->
-``base_color`` (albedo estimator + colour correction + UV merge on the garment) -> ``material``
-(BRDF parameters and the constant light, fitted by the PBR renderer) -> the asset directory ``OUT``.
+Stages (declared in :mod:`pgc.stages`; folder ``OUT/stages/<name>``, options ``[stages.<name>]``): ``mesh``
+(reconstructor: labelled full-body mesh with UVs) -> ``garment`` (the garment sub-mesh with its own UV atlas) ->
+``fit_splats`` (mesh-embedded Gaussians fitted on the full mesh, then only the garment's kept) -> ``base_color``
+(albedo estimator + colour correction + UV merge on the garment) -> ``material`` (BRDF parameters and the
+constant light, fitted by the PBR renderer) -> the asset directory ``OUT``.
 """
 
 from __future__ import annotations

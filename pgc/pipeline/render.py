@@ -23,19 +23,16 @@ from pgc.events import Reporter
 from pgc.geometry.raster import rasterize
 from pgc.io.atomic import write_json
 from pgc.pipeline.animate import read_run
-from pgc.pipeline.cache import StageCache, array_key, asset_key, content_key, file_key
+from pgc.pipeline.cache import StageCache, array_key, asset_key, file_key
 from pgc.pipeline.compose import (compose, far_field_gaussians, gaussian_uvs, hide_behind, unpremultiply,
                                   visible_surface_uvs)
 from pgc.pipeline.garment import body_occluder
+from pgc.pipeline.runner import StageContext, StageRunner, Step
 from pgc.pipeline.stage_io import save_npz
 from pgc.sampling import spread
 from pgc.splats.binding import bind
+from pgc.stages import render as render_stage
 from pgc.types import Camera, Capture, GarmentAsset, Light, Mesh
-
-
-RENDER_VERSION = "4"
-"""Version of the code that computes the render stage: part of its cache key, raised whenever that code
-changes what it writes."""
 
 
 @dataclass(frozen=True)
@@ -197,6 +194,64 @@ def light_record(light: Light | None, light_file: str | Path | None, asset_light
     return envmap_record(light_file, frames, rotations[0] if rotations else light.rotation_deg)
 
 
+@dataclass(frozen=True)
+class RenderInputs:
+    """What the render stage reads: the run folder, its asset and capture, the hybrid renderer, the light (None:
+    the asset's fitted light) and how the kernel is decided."""
+
+    run_dir: Path
+    asset: GarmentAsset
+    capture: Capture
+    renderer: HybridRenderer
+    light: Light | None
+    light_file: str | Path | None
+    rotate_light: bool
+    decide: Callable[[HybridRenderer, Capture], KernelDecision] | None
+
+
+def compute_render(ctx: StageContext[RenderInputs], folder: Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Decide the kernel on the training frame, then render every ``frame_stride``-th frame from ``views``
+    cameras into ``folder`` (``frame_XXXX.npz`` and ``render.json``)."""
+    from pgc.pipeline.evaluate import render_inputs
+
+    inp, reporter, settings = ctx.inputs, ctx.reporter, ctx.cfg.stage("render")
+    run_dir, asset, renderer = inp.run_dir, inp.asset, inp.renderer
+    run_light = inp.light or asset.light
+    with reporter.stage("choose_kernel") as st:
+        kernel = inp.decide(renderer, inp.capture) if inp.decide else choose_kernel(renderer, inp.capture, ctx.cfg)
+        st.record(kernel_size=kernel.kernel_size, far_source=kernel.far_source)
+    vertices = np.load(run_dir / "garment.npz")["vertices"]
+    with np.load(run_dir / "body.npz") as z:
+        body_vertices, body_faces = z["vertices"], z["faces"]
+    frames = list(range(0, len(vertices), settings.frame_stride))
+    rotations = [360.0 * i / len(frames) if inp.rotate_light else run_light.rotation_deg for i in range(len(frames))]
+    record = light_record(inp.light, inp.light_file, asset.light, frames, rotations)
+    cameras = spread(inp.capture.cameras, settings.views)
+    with reporter.stage("render_frames", total=len(frames) * len(cameras)) as st:
+        for i, t in enumerate(frames):
+            frame_light = replace(run_light, rotation_deg=rotations[i])
+            body = Mesh(body_vertices[t], body_faces, name="body")
+            per_cam = [renderer.frame(vertices[t].astype(np.float64), cam, frame_light, kernel, body)
+                       for cam in cameras]
+            save_npz(folder / f"frame_{t:04d}.npz", **{k: np.stack([p[k] for p in per_cam]) for k in per_cam[0]})
+            st.progress((i + 1) * len(cameras))
+    meta_out = {"frames": frames, "cameras": [c.name for c in cameras], **kernel.to_json(),
+                "inputs": render_inputs(run_dir),
+                "light": {"radiance": run_light.radiance.tolist(), "envmap": run_light.envmap is not None,
+                          "rotating": inp.rotate_light, **record}}
+    write_json(folder / "render.json", meta_out)
+    return meta_out, {"kernel_size": kernel.kernel_size, "frames": len(frames), "views": len(cameras)}
+
+
+def load_render(ctx: StageContext[RenderInputs], folder: Path) -> None:
+    """The frames stay on disk (``pgc eval`` reads them); nothing is loaded."""
+    return None
+
+
+STAGES = ((render_stage.STAGE, Step(compute_render, load_render)),)
+"""The stages of ``pgc render``, each with its code."""
+
+
 def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
                reporter: Reporter | None = None, rotate_light: bool = False,
                decide: Callable[[HybridRenderer, Capture], KernelDecision] | None = None,
@@ -209,52 +264,25 @@ def render_run(run_dir: str | Path, cfg: RunConfig, light: Light | None = None,
     ``render.json`` (name, path, sha256, rotation per frame) so that ``pgc eval`` renders the truth under it."""
     from pgc.io.asset import read_asset
     from pgc.io.capture import read_capture
-    from pgc.pipeline.evaluate import render_inputs
 
-    reporter = reporter or Reporter.silent()
     run_dir = Path(run_dir)
     meta = read_run(run_dir)
     asset = read_asset(meta["asset"])
     capture = read_capture(meta["capture"]) if meta.get("capture") else None
     if capture is None:
         raise PGCDataError(f"{run_dir}: the run records no capture; its cameras are needed to render")
-    settings = cfg.stage("render")
-    renderer = HybridRenderer(asset, cfg)
     run_light = light or asset.light
     source = light_record(light, light_file, asset.light, [], [])
-    # the light file's name, path and sha256 are part of the key (a capture-light run's key is unchanged)
-    recorded = ({k: source.get(k) for k in ("kind", "file", "path", "sha256")},) if source["kind"] != "capture" else ()
-    key = content_key("render", file_key(run_dir / "garment.npz"),
-                      asset_key(meta["asset"]), settings, rotate_light,
-                      [cfg.role_key(r) for r in ("splat_renderer", "pbr_renderer", "filter")
-                       + (("metric",) if settings.kernel.mode == "metric" else ())],
-                      {"radiance": run_light.radiance.tolist(), "rotation": run_light.rotation_deg,
-                       "envmap": None if run_light.envmap is None else array_key(run_light.envmap)}, *recorded)
-
-    def compute(folder: Path):
-        with reporter.stage("choose_kernel") as st:
-            kernel = decide(renderer, capture) if decide else choose_kernel(renderer, capture, cfg)
-            st.record(kernel_size=kernel.kernel_size, far_source=kernel.far_source)
-        vertices = np.load(run_dir / "garment.npz")["vertices"]
-        with np.load(run_dir / "body.npz") as z:
-            body_vertices, body_faces = z["vertices"], z["faces"]
-        frames = list(range(0, len(vertices), settings.frame_stride))
-        rotations = [360.0 * i / len(frames) if rotate_light else run_light.rotation_deg for i in range(len(frames))]
-        record = light_record(light, light_file, asset.light, frames, rotations)
-        cameras = spread(capture.cameras, settings.views)
-        with reporter.stage("render_frames", total=len(frames) * len(cameras)) as st:
-            for i, t in enumerate(frames):
-                frame_light = replace(run_light, rotation_deg=rotations[i])
-                body = Mesh(body_vertices[t], body_faces, name="body")
-                per_cam = [renderer.frame(vertices[t].astype(np.float64), cam, frame_light, kernel, body)
-                           for cam in cameras]
-                save_npz(folder / f"frame_{t:04d}.npz", **{k: np.stack([p[k] for p in per_cam]) for k in per_cam[0]})
-                st.progress((i + 1) * len(cameras))
-        meta_out = {"frames": frames, "cameras": [c.name for c in cameras], **kernel.to_json(),
-                    "inputs": render_inputs(run_dir),
-                    "light": {"radiance": run_light.radiance.tolist(), "envmap": run_light.envmap is not None,
-                              "rotating": rotate_light, **record}}
-        write_json(folder / "render.json", meta_out)
-        return meta_out, {"kernel_size": kernel.kernel_size, "frames": len(frames), "views": len(cameras)}
-
-    return StageCache(run_dir).run("render", key, compute, lambda f: None, RENDER_VERSION).folder
+    inputs = RenderInputs(run_dir, asset, capture, HybridRenderer(asset, cfg), light, light_file, rotate_light, decide)
+    cache = StageCache(run_dir)
+    runner = StageRunner(cache, StageContext(cfg, reporter or Reporter.silent(), inputs), {
+        "run": file_key(run_dir / "garment.npz"), "asset": asset_key(meta["asset"]),
+        # the light file's name, path and sha256 are part of the key
+        "light": {"radiance": run_light.radiance.tolist(), "rotation": run_light.rotation_deg,
+                  "envmap": None if run_light.envmap is None else array_key(run_light.envmap),
+                  "rotating": rotate_light,
+                  "file": None if source["kind"] == "capture" else {k: source.get(k)
+                                                                   for k in ("kind", "file", "path", "sha256")}}})
+    for stage, step in STAGES:
+        runner.run(stage, step)
+    return cache.folder("render")
