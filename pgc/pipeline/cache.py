@@ -145,8 +145,8 @@ class StageCache:
 
     def run(self, stage: str, key: str, compute: Callable[[Path], tuple[T, dict[str, Any]]],
             load: Callable[[Path], T], code_version: str = "") -> StageResult[T]:
-        """Load ``stage`` if its stored key equals ``key`` (with ``code_version``, a string the caller changes
-        whenever the code computing the stage changes its results); else ``compute(tmp_folder)`` ->
+        """Load ``stage`` if its stored key equals ``key`` (with ``code_version``: the stage's declared version,
+        :attr:`pgc.stages.declaration.Stage.version`, passed by :class:`pgc.pipeline.runner.StageRunner`); else ``compute(tmp_folder)`` ->
         (value, figures).
 
         ``compute`` writes its files into the folder it is given; ``load(folder)`` reads them back.
