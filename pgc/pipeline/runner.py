@@ -33,7 +33,7 @@ class StageContext(Generic[I]):
     reporter: Reporter
     inputs: I
     values: dict[str, Any] = field(default_factory=dict)
-    _implementations: dict[str, Any] = field(default_factory=dict)
+    _implementations: dict[str, Any] = field(default_factory=dict, init=False, repr=False)
 
     def implementation(self, role: str) -> Any:
         """The configured implementation of ``role``, created once per run."""

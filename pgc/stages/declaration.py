@@ -55,7 +55,7 @@ class Stage:
     folder: str
     """Where its result lives, relative to the command's output (``ASSET/stages/mesh``, ``RUN/render``)."""
     role: str | None = None
-    """The role it calls (None: it calls none of its own)."""
+    """The role whose work it is (None: none, as ``garment``, or several, as ``render``: see ``roles``)."""
     roles: tuple[str, ...] = ()
     """Roles whose choice (implementation, options, version) enters the cache key; default ``(role,)``."""
     settings: type[Options] | None = None
