@@ -22,6 +22,13 @@ from pgc.errors import PGCDataError
 
 BACKGROUND_LABEL = 0
 """Segmentation id of pixels that see no person."""
+BODY_LABEL = 1
+"""Segmentation id of the body (skin, and whatever is neither garment nor background)."""
+GARMENT_LABEL = 2
+"""Segmentation id of the garment in the default labels (:attr:`Capture.labels`; a capture may name more
+garment ids) and in synthetic scenes."""
+DEFAULT_LABELS = {BACKGROUND_LABEL: "background", BODY_LABEL: "body", GARMENT_LABEL: "garment"}
+"""Segmentation id -> name of a capture that names none."""
 
 
 def _check_finite(name: str, array: np.ndarray, where: str) -> None:
@@ -188,7 +195,7 @@ class Capture:
     """A multi-view capture of one static frame."""
 
     views: list[View]
-    labels: dict[int, str] = field(default_factory=lambda: {0: "background", 1: "body", 2: "garment"})
+    labels: dict[int, str] = field(default_factory=lambda: dict(DEFAULT_LABELS))
     """Segmentation id -> name. Ids whose name is neither 'background' nor 'body' are garments."""
     light: Light | None = None
     """Known lighting, when the capture provides it (synthetic ground truth)."""

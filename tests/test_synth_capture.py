@@ -159,7 +159,7 @@ def test_colour_is_the_person_over_the_empty_dome(capture_and_oracle):
 def test_depth_and_albedo_layers(capture_and_oracle):
     from scipy.ndimage import maximum_filter, minimum_filter
 
-    from pgc.synth.render import SKIN_ALBEDO
+    from pgc.roles.scene_renderer import SKIN_ALBEDO
 
     capture, _, oracle = capture_and_oracle
     for view, o in zip(capture.views, oracle):
@@ -175,7 +175,7 @@ def test_lambertian_patch_matches_the_analytic_value(default_scene_renderer):
     """A flat Lambertian patch (albedo rho) under a constant environment of radiance L, unoccluded over its
     upper hemisphere, has radiance rho L in every direction. Both the shared BSDF (material_to_bsdf,
     'lambertian' with a texture) and Mitsuba's own 'diffuse' (the body) must give it."""
-    from pgc.synth.render import SceneGeometry
+    from pgc.roles.scene_renderer import SceneGeometry
     from pgc.synth.rig import look_at
     from pgc.types import Light
 

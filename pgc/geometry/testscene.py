@@ -13,10 +13,7 @@ import numpy as np
 
 from pgc.geometry.raster import rasterize
 from pgc.geometry.surface_nets import surface_nets
-from pgc.types import Camera, Capture, Mesh, View
-
-LABELS = {0: "background", 1: "body", 2: "garment"}
-
+from pgc.types import BODY_LABEL, DEFAULT_LABELS, GARMENT_LABEL, Camera, Capture, Mesh, View
 
 def look_at(center: np.ndarray, target: np.ndarray, width: int, height: int, fov_y_deg: float,
             name: str) -> Camera:
@@ -82,7 +79,7 @@ def body_mesh(spacing: float = 0.015) -> Mesh:
     v, f = surface_nets(field, lo, spacing)
     c = v[f].mean(1)
     garment = (c[:, 1] > 0.95) & (c[:, 1] < 1.45) & (np.abs(c[:, 0]) < 0.24)
-    return Mesh(v, f, face_labels=np.where(garment, 2, 1), name="blob")
+    return Mesh(v, f, face_labels=np.where(garment, GARMENT_LABEL, BODY_LABEL), name="blob")
 
 
 def albedo(points: np.ndarray, labels: np.ndarray, seed: int = 0) -> np.ndarray:
@@ -95,7 +92,7 @@ def albedo(points: np.ndarray, labels: np.ndarray, seed: int = 0) -> np.ndarray:
     stripes = 0.5 + 0.5 * np.sign(np.sin(points[:, 1] * 2 * np.pi / 0.05))
     garment = np.array([0.15, 0.25, 0.6]) + 0.35 * stripes[:, None] * np.array([0.9, 0.8, 0.2])
     skin = np.array([0.55, 0.38, 0.3]) * np.ones((len(points), 1))
-    base = np.where((labels == 2)[:, None], garment, skin)
+    base = np.where((labels == GARMENT_LABEL)[:, None], garment, skin)
     return np.clip(base * (1.0 + 0.45 * noise[:, None]), 0.02, 1.0)
 
 
@@ -123,4 +120,4 @@ def render_view(mesh: Mesh, camera: Camera, background: float = 0.2, supersample
 def make_capture(mesh: Mesh | None = None, views: int = 16, size: int = 128) -> tuple[Capture, Mesh]:
     """A capture of ``mesh`` (default :func:`body_mesh`) from ``views`` dome cameras, and the mesh."""
     mesh = mesh if mesh is not None else body_mesh()
-    return Capture([render_view(mesh, cam) for cam in dome_cameras(views, size)], labels=dict(LABELS)), mesh
+    return Capture([render_view(mesh, cam) for cam in dome_cameras(views, size)], labels=dict(DEFAULT_LABELS)), mesh

@@ -479,7 +479,7 @@ class SceneRendererConformance(_Suite):
 
     @pytest.fixture
     def geometry(self, camera):
-        from pgc.synth.render import SceneGeometry
+        from pgc.roles.scene_renderer import SceneGeometry
         from pgc.types import Material, Mesh
 
         pix = np.array([[u, v, 1.0] for u, v in self.CORNERS])
@@ -501,8 +501,7 @@ class SceneRendererConformance(_Suite):
         return inside.mean(axis=2)
 
     def test_ground_truth_layers_are_exact(self, implementation, camera, geometry):
-        from pgc.synth.render import LABEL_GARMENT
-        from pgc.types import Light
+        from pgc.types import GARMENT_LABEL, Light
 
         scene, labels = implementation.build_scene(geometry, Light(radiance=np.array(self.RADIANCE)))
         layers = implementation.ground_truth_layers(scene, labels, geometry, camera, self.SAMPLES)
@@ -521,7 +520,7 @@ class SceneRendererConformance(_Suite):
         np.testing.assert_array_equal(layers["depth"][~covered], 0.0)
         np.testing.assert_allclose(layers["albedo"][covered], self.ALBEDO, rtol=1e-6)
         np.testing.assert_array_equal(layers["albedo"][~covered], 0.0)
-        np.testing.assert_array_equal(layers["segmentation"][expected > 0.55], LABEL_GARMENT)
+        np.testing.assert_array_equal(layers["segmentation"][expected > 0.55], GARMENT_LABEL)
         np.testing.assert_array_equal(layers["segmentation"][expected < 0.45], 0)
 
     def test_color_is_albedo_times_radiance(self, implementation, camera, geometry):
