@@ -18,7 +18,6 @@ Contract
 
 from __future__ import annotations
 
-import functools
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -116,27 +115,18 @@ def check_shading_inputs(material: Material, light: Light, where: str = "pbr_ren
 def _checked(method: Callable[..., Any]) -> Callable[..., Any]:
     """``method`` (``render`` or ``render_texture``) preceded by :func:`check_shading_inputs`."""
 
-    @functools.wraps(method)
     def checked(self: "PBRRenderer", mesh: Mesh, material: Material, light: Light, *args: Any,
                 **kwargs: Any) -> Any:
         check_shading_inputs(material, light, f"pbr_renderer {type(self).__name__}.{method.__name__}")
         return method(self, mesh, material, light, *args, **kwargs)
 
-    checked.inputs_checked = True  # type: ignore[attr-defined]
     return checked
 
 
 class PBRRenderer(RoleImplementation, ABC):
     role = "pbr_renderer"
-
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        """Every implementation's ``render`` and ``render_texture`` check the material and light first."""
-        super().__init_subclass__(**kwargs)
-        for name in ("render", "render_texture"):
-            method = cls.__dict__.get(name)
-            if callable(method) and not getattr(method, "__isabstractmethod__", False) \
-                    and not getattr(method, "inputs_checked", False):
-                setattr(cls, name, _checked(method))
+    input_checks = {"render": _checked, "render_texture": _checked}
+    """Every implementation's ``render`` and ``render_texture`` check the material and light first."""
 
     @abstractmethod
     def render(self, mesh: Mesh, material: Material, light: Light, camera: Camera,
