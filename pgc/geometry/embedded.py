@@ -103,9 +103,11 @@ class DetailSurface:
                                self.offset)
 
     def mesh(self, garment_vertices: np.ndarray, name: str = "garment_detail") -> Mesh:
-        """The fine surface as a :class:`Mesh` with per-corner UVs in the garment's atlas (face label :data:`pgc.types.GARMENT_LABEL`)."""
+        """The fine surface as a :class:`Mesh` with per-corner UVs in the garment's atlas, every face labelled
+        garment (:data:`pgc.types.GARMENT_LABEL`)."""
         _, _, faces, face_uv, uv, _ = self._topology
-        return Mesh(self.vertices(garment_vertices), faces, uv, face_uv, np.full(len(faces), GARMENT_LABEL, np.int32), name)
+        labels = np.full(len(faces), GARMENT_LABEL, np.int32)
+        return Mesh(self.vertices(garment_vertices), faces, uv, face_uv, labels, name)
 
 
 @dataclass

@@ -4,7 +4,8 @@ Contract
 - :meth:`SceneRenderer.build_scene` turns a :class:`SceneGeometry` (body, garment with its
   material and optional normal map, optional fibres; world metres) and a :class:`pgc.types.Light` into an
   opaque scene object of the implementation, and a map from its shape ids to segmentation labels
-  (:data:`pgc.types.BODY_LABEL` / :data:`pgc.types.GARMENT_LABEL`). ``geometry`` None is the empty scene: the light only.
+  (:data:`pgc.types.BODY_LABEL` / :data:`pgc.types.GARMENT_LABEL`). ``geometry`` None is the empty scene: the
+  light only.
 - :meth:`SceneRenderer.render_color` renders linear RGB (H, W, 3) float32 and the film's alpha (H, W) float32
   in [0, 1] for a :class:`pgc.types.Camera` (OpenCV convention, square pixels) with ``spp`` samples per
   pixel, box pixel filter; the same ``seed`` gives the same image. Rays that miss every shape see the

@@ -1,10 +1,12 @@
-"""A small synthetic capture made from a labelled mesh: the scene of the reconstruction tests and a
-stand-in before the full generator (pgc.synth) exists.
+"""Small captures made in-process for tests and benchmarks (no generator, no path tracer).
 
-A body-like blob (torso, head, arms in an A-pose, legs; about 1.7 m tall, +Y up, feet at y = 0) with a
-'garment' band on the torso, a solid procedural texture (stripes and value noise of a few centimetres, so
-photo-consistency has texture), Lambertian shading under a fixed directional light plus ambient (view
-independent), rendered with 2x2 supersampling through cameras on a dome.
+:func:`make_capture`: a body-like blob (torso, head, arms in an A-pose, legs; about 1.7 m tall, +Y up, feet
+at y = 0) with a 'garment' band on the torso, a solid procedural texture (stripes and value noise of a few
+centimetres, so photo-consistency has texture), Lambertian shading under a fixed directional light plus
+ambient (view independent), rendered with 2x2 supersampling through cameras on a dome: the scene of the
+reconstruction and splat-fit tests.
+
+:func:`textured_box_capture`: a textured cube seen by exactly posed cameras (the calibrator's scene).
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ import numpy as np
 from pgc.geometry.raster import rasterize
 from pgc.geometry.surface_nets import surface_nets
 from pgc.types import BODY_LABEL, DEFAULT_LABELS, GARMENT_LABEL, Camera, Capture, Mesh, View
+
 
 def look_at(center: np.ndarray, target: np.ndarray, width: int, height: int, fov_y_deg: float,
             name: str) -> Camera:
@@ -120,4 +123,42 @@ def render_view(mesh: Mesh, camera: Camera, background: float = 0.2, supersample
 def make_capture(mesh: Mesh | None = None, views: int = 16, size: int = 128) -> tuple[Capture, Mesh]:
     """A capture of ``mesh`` (default :func:`body_mesh`) from ``views`` dome cameras, and the mesh."""
     mesh = mesh if mesh is not None else body_mesh()
-    return Capture([render_view(mesh, cam) for cam in dome_cameras(views, size)], labels=dict(DEFAULT_LABELS)), mesh
+    views_ = [render_view(mesh, cam) for cam in dome_cameras(views, size)]
+    return Capture(views_, labels=dict(DEFAULT_LABELS)), mesh
+
+
+def textured_box_capture(views: int = 8, size: int = 192) -> Capture:
+    """A capture of a 0.8 m cube with a multi-scale solid noise texture (SIFT finds blobs on it) from
+    ``views`` cameras 20 degrees apart on an arc 2.2 m from its centre, with exact poses."""
+    n, half = 8, 0.4
+    g = np.linspace(-half, half, n + 1)
+    vertices, faces = [], []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            u, v = np.meshgrid(g, g, indexing="ij")
+            p = np.zeros(u.shape + (3,))
+            p[..., axis], p[..., (axis + 1) % 3], p[..., (axis + 2) % 3] = sign * half, u, v
+            idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1) + sum(len(x) for x in vertices)
+            q = np.stack([idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]], -1).reshape(-1, 4)
+            f = np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])
+            faces.append(f if sign > 0 else f[:, ::-1])
+            vertices.append(p.reshape(-1, 3))
+    box = Mesh(np.concatenate(vertices), np.concatenate(faces))
+    rng = np.random.default_rng(0)
+    freq = rng.normal(size=(3, 16, 3))
+    freq *= (2 * np.pi / rng.uniform(0.04, 0.15, size=(3, 16)))[..., None] / np.linalg.norm(freq, axis=-1,
+                                                                                             keepdims=True)
+    phase = rng.uniform(0, 2 * np.pi, (3, 16))
+    out = []
+    for i in range(views):
+        a, e = np.radians(20.0 * i), np.radians(25.0)
+        centre = 2.2 * np.array([np.cos(e) * np.sin(a), np.sin(e), np.cos(e) * np.cos(a)])
+        cam = look_at(centre, np.zeros(3), size, size, 40.0, f"v{i}")
+        r = rasterize(cam, box.vertices, box.faces)
+        hit = r.face_id >= 0
+        pts = np.einsum("nk,nkj->nj", r.bary[hit], box.vertices[box.faces[r.face_id[hit]]])
+        image = np.full((size, size, 3), 0.5, np.float32)
+        image[hit] = np.stack([0.5 + 0.45 * np.tanh(4 * np.sin(pts @ freq[c].T + phase[c]).mean(1))
+                               for c in range(3)], -1)
+        out.append(View(cam, image, hit.astype(np.float32), hit.astype(np.uint8)))
+    return Capture(out)
