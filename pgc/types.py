@@ -137,6 +137,21 @@ class Camera:
                        height=max(1, round(self.height * factor)))
 
 
+def look_at_pose(eye: np.ndarray, target: np.ndarray, up: tuple[float, float, float] = (0.0, 1.0, 0.0)
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """OpenCV world-to-camera (R, t) of a camera at ``eye`` looking at ``target`` (metres) with world ``up`` up
+    (world +Z stands in for ``up`` when the camera looks along it)."""
+    z = np.asarray(target, float) - np.asarray(eye, float)
+    z /= np.linalg.norm(z)
+    x = np.cross(z, np.asarray(up, float))
+    if np.linalg.norm(x) < 1e-8:
+        x = np.cross(z, [0.0, 0.0, 1.0])
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)  # image down
+    R = np.stack([x, y, z])
+    return R, -R @ np.asarray(eye, float)
+
+
 @dataclass
 class View:
     """One calibrated image of the capture."""

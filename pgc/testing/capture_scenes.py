@@ -15,21 +15,17 @@ import numpy as np
 
 from pgc.geometry.raster import rasterize
 from pgc.geometry.surface_nets import surface_nets
-from pgc.types import BODY_LABEL, DEFAULT_LABELS, GARMENT_LABEL, Camera, Capture, Mesh, View
+from pgc.types import BODY_LABEL, DEFAULT_LABELS, GARMENT_LABEL, Camera, Capture, Mesh, View, look_at_pose
 
 
 def look_at(center: np.ndarray, target: np.ndarray, width: int, height: int, fov_y_deg: float,
             name: str) -> Camera:
-    """An OpenCV camera at ``center`` looking at ``target`` with world +Y up."""
-    z = np.asarray(target, float) - np.asarray(center, float)
-    z /= np.linalg.norm(z)
-    x = np.cross(z, [0.0, 1.0, 0.0])
-    x /= np.linalg.norm(x)
-    y = np.cross(z, x)
-    R = np.stack([x, y, z])
+    """An OpenCV camera at ``center`` looking at ``target`` with world +Y up, ``fov_y_deg`` vertical field of
+    view and the principal point at the image centre."""
+    R, t = look_at_pose(center, target)
     f = 0.5 * height / np.tan(np.radians(fov_y_deg) / 2)
     K = np.array([[f, 0, width / 2], [0, f, height / 2], [0, 0, 1]])
-    return Camera(K, R, -R @ np.asarray(center, float), width, height, name)
+    return Camera(K, R, t, width, height, name)
 
 
 def dome_cameras(count: int, size: int = 128, radius: float = 3.0, target_y: float = 0.9,
