@@ -57,9 +57,8 @@ class MaterialFitSettings(Options):
     processes, up to the cores the process is allotted) and their gradients summed in shard order: the result
     does not depend on the thread count (Dr.Jit's multi-threaded gradient sums do, by racy atomic adds)."""
     parallel_min_pixels: int = count(16384, 0, 2**31 - 1)
-    """Shards render in parallel processes only when a film has at least this many pixels: a worker process
-    takes about half a second to start, more than a small fit saves (the tiny demo's 48 px films take 40 steps
-    of a few milliseconds). The result is the same bytes either way."""
+    """Shards render in parallel processes only when a film has at least this many pixels: starting a worker
+    process costs more than a small film's steps save (docs/pbr.md). The result is the same bytes either way."""
     max_depth: int = count(4, 2, 64)
     """Path length while fitting and when comparing models (4: direct light plus two indirect bounces;
     light trapped between garment and body needs them)."""
