@@ -3,7 +3,7 @@
 
 Forward and forward+backward seconds per view for every installed splat renderer (built through the
 registry) at each image size and Gaussian count, on Gaussians covering the surface of the test body
-(pgc.geometry.testscene) with a fitted-like density; ratios to the torch renderer of the same run. The float64
+(pgc.testing.capture_scenes) with a fitted-like density; ratios to the torch renderer of the same run. The float64
 per-pixel reference (pgc.splats.reference) runs only on a tiny scene (it loops over pixels in Python); there
 each backend's time is also a ratio to it and its error is the largest absolute difference to it. At the
 larger sizes the error is the largest difference to the torch image. ``--fit`` also fits splats on a capture
@@ -41,7 +41,7 @@ from bench_filter import PeakRSS, print_table, timed  # noqa: E402
 
 def surface_scene(count: int, size: int, seed: int = 0):
     """World Gaussians on the test body (flat discs of the sampling spacing, opacity 0.8) and a dome camera."""
-    from pgc.geometry.testscene import body_mesh, dome_cameras
+    from pgc.testing.capture_scenes import body_mesh, dome_cameras
     from pgc.splats.binding import bind
     from pgc.splats.init import sample_on_mesh
 
@@ -309,7 +309,7 @@ def fit_benchmark(args, reg, env) -> list[dict[str, Any]]:
         capture = read_capture(args.capture)
         mesh = read_mesh(Path(args.capture) / args.mesh)
     else:
-        from pgc.geometry.testscene import body_mesh, make_capture
+        from pgc.testing.capture_scenes import body_mesh, make_capture
 
         capture, mesh = make_capture(body_mesh(0.02), views=32, size=256)
     records = []

@@ -9,7 +9,7 @@ from pgc.sim.collision import candidate_corners, signed_distance, vertex_normals
 from pgc.sim.kernels import NUMPY, closest_barycentric
 from pgc.sim.model import BEND, STRETCH, bending_pairs, build_cloth_model, vertex_masses
 from pgc.sim.sagfree import hem_sag, sag, shape_error, solve_sag_free
-from pgc.sim.scenes import grid_cloth, skirt, uv_sphere
+from pgc.testing.cloth_scenes import grid_cloth, skirt, uv_sphere
 from pgc.sim.schedule import body_schedule
 from pgc.types import BodyMotion, Mesh
 

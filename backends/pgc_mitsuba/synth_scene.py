@@ -1,10 +1,11 @@
 """The ``scene_renderer`` role on Mitsuba 3 (LLVM variant, CPU): path-traced colour and exact ray-cast
-ground truth of a synthetic scene (:class:`pgc.synth.render.SceneGeometry`).
+ground truth of a synthetic scene (:class:`pgc.roles.scene_renderer.SceneGeometry`).
 
 Colour: the ``path`` integrator, box pixel filter (a pixel's value is the mean radiance over its square, so
 edges blend the person with the background by exact coverage), the named sampler seeded per call
 (Mitsuba's LLVM rendering is deterministic for a fixed seed). Ground truth: one ``ray_intersect`` of the
-rays of :func:`pgc.synth.render.subpixel_rays`, reduced by :func:`pgc.synth.render.layers_from_samples`.
+rays of :func:`pgc.roles.scene_renderer.subpixel_rays`, reduced by
+:func:`pgc.roles.scene_renderer.layers_from_samples`.
 
 The garment's BSDF is :func:`pgc_mitsuba.bsdfs.material_to_bsdf` (the shared BRDF evaluation), wrapped in
 Mitsuba's ``normalmap`` when the fabric has a weave, on the garment's near-field detail surface when there is
@@ -22,10 +23,9 @@ import numpy as np
 
 from pgc.errors import PGCDataError
 from pgc.roles.scene_renderer import SceneRenderer
-from pgc.synth.fabrics import Fibres
-from pgc.synth.render import (LABEL_BODY, LABEL_GARMENT, SceneGeometry, empty_layers, layers_from_samples,
-                              subpixel_rays)
-from pgc.types import Camera, Light, Material
+from pgc.geometry.embedded import Fibres
+from pgc.roles.scene_renderer import SceneGeometry, empty_layers, layers_from_samples, subpixel_rays
+from pgc.types import BODY_LABEL, GARMENT_LABEL, Camera, Light, Material
 from pgc_mitsuba.bsdfs import material_to_bsdf
 from pgc_mitsuba.runtime import mesh_to_mitsuba, mitsuba
 from pgc_mitsuba.scene import emitter_dict
@@ -102,10 +102,10 @@ class MitsubaSceneRenderer(SceneRenderer):
             scene["garment"] = mesh_to_mitsuba(surface.vertices, surface.faces, name="garment", uv=surface.uv,
                                                face_uv=surface.face_uv, vertex_normals=True,
                                                bsdf=mi.load_dict(garment_bsdf(geometry.material, geometry.normal_map)))
-            labels = {"body": LABEL_BODY, "garment": LABEL_GARMENT}
+            labels = {"body": BODY_LABEL, "garment": GARMENT_LABEL}
             if geometry.fibres is not None:
                 scene["fibres"] = fibre_shape(geometry.fibres, g.vertices, g.faces, geometry.material)
-                labels["fibres"] = LABEL_GARMENT
+                labels["fibres"] = GARMENT_LABEL
         return mi.load_dict(scene), labels
 
     def render_color(self, scene: Any, camera: Camera, spp: int, seed: int, sampler: str = "independent"
@@ -134,7 +134,7 @@ class MitsubaSceneRenderer(SceneRenderer):
         label = np.zeros(len(o), np.uint8)
         for shape in scene.shapes():
             hit = np.array(si.shape == mi.ShapePtr(shape), dtype=bool) & valid
-            label[hit] = labels.get(shape.id(), LABEL_BODY)
+            label[hit] = labels.get(shape.id(), BODY_LABEL)
         t = np.array(si.t, dtype=np.float64)
         uv = np.stack([np.array(si.uv.x), np.array(si.uv.y)], axis=1)
         z = np.where(valid, t * (d @ camera.R[2]), 0.0)

@@ -247,10 +247,7 @@ def _bench_records(bench: Path | None) -> list[dict[str, Any]]:
     path = bench / "bench.json" if bench.is_dir() else bench
     if not path.is_file():
         raise PGCDataError(f"{bench}: no bench.json; make one with 'pgc bench --out DIR' and pass that DIR")
-    try:
-        data = read_json(path, "bench.json")
-    except PGCDataError as exc:
-        raise PGCDataError(f"{exc}; rerun 'pgc bench'") from None
+    data = read_json(path, "bench.json", fix="rerun 'pgc bench'")
     records = data.get("records", data) if isinstance(data, dict) else data
     if not isinstance(records, list):
         raise PGCDataError(f"{path}: expected a list of bench records (or an object with 'records')")

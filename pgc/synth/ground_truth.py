@@ -26,14 +26,13 @@ from pathlib import Path
 import numpy as np
 
 from pgc.errors import PGCDataError
+from pgc.geometry.embedded import DetailSurface, Fibres
 from pgc.io import images as imgio
 from pgc.io.atomic import atomic_open, write_json
 from pgc.io.limits import read_json
 from pgc.io.mesh import read_mesh, write_mesh
+from pgc.roles.scene_renderer import SKIN_ALBEDO, SceneGeometry
 from pgc.synth.body import BodyModel
-from pgc.synth.detail import DetailSurface
-from pgc.synth.fabrics import Fibres
-from pgc.synth.render import SKIN_ALBEDO, SceneGeometry
 from pgc.synth.skeleton import BodyShape
 from pgc.types import Light, Material, Mesh
 
