@@ -28,6 +28,18 @@ log = logging.getLogger(__name__)
 RIG = "cmu_mb"
 """Anny's rig with the joints of the CMU motion-capture skeleton."""
 
+CMU_ASF_JOINTS: dict[str, str] = {
+    "root": "Hips", "lowerback": "LowerBack", "upperback": "Spine", "thorax": "Spine1",
+    "lowerneck": "Neck", "upperneck": "Neck1", "head": "Head",
+    **{f"{s}{asf}": f"{side}{rig}" for s, side in (("l", "Left"), ("r", "Right"))
+       for asf, rig in (("clavicle", "Shoulder"), ("humerus", "Arm"), ("radius", "ForeArm"), ("wrist", "Hand"),
+                        ("hand", "FingerBase"), ("fingers", "HandFinger1"), ("femur", "UpLeg"), ("tibia", "Leg"),
+                        ("foot", "Foot"), ("toes", "ToeBase"))},
+    "lhipjoint": "LHipJoint", "rhipjoint": "RHipJoint", "lthumb": "LThumb", "rthumb": "RThumb",
+}
+"""CMU ASF/AMC bone name -> joint of the ``cmu_mb`` rig (the MotionBuilder-friendly names of CMU's BVH release).
+A rig joint sits where its ASF bone starts and rotates what that bone carries."""
+
 ANNY_TO_PGC = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 """Rotation taking Anny's Z-up, -Y-facing coordinates to PGC's Y-up, +Z-facing ones (x stays the person's
 left)."""
@@ -44,13 +56,13 @@ PHENOTYPES: dict[str, ShapeParameter] = {
 
 
 @functools.lru_cache(maxsize=4)
-def build_anny(topology: str, dtype_name: str = "float32"):
+def build_anny(topology: str, dtype_name: str = "float64"):
     """Anny with the CMU rig and ``topology``, in ``dtype_name`` (cached per process; the first build of a
     topology on a machine fills Anny's disk cache, about two minutes)."""
     import anny
     import torch
 
-    if dtype_name != "float32":
+    if dtype_name != "float64":  # Anny's own dtype
         return copy.deepcopy(build_anny(topology)).to(getattr(torch, dtype_name))
     from anny.paths import get_anny_cache_path
 
@@ -95,6 +107,6 @@ class AnnyBody(BodyModel):
         ground = torch.stack([-joints[:, 0, 0], -vertices[..., 1].min(dim=1).values, -joints[:, 0, 2]], dim=1)
         vertices, joints = vertices + ground[:, None], joints + ground[:, None]
         transforms = global_transforms_torch(joints, self.parents, rotations, translation)
-        posed = model.get_skinned_vertices(vertices, transforms)
+        posed = model.get_skinned_vertices(vertices.expand(len(transforms), -1, -1), transforms)
         posed_joints = transforms[..., :3, :3] @ joints[..., None]
         return BodyTensors(posed, posed_joints[..., 0] + transforms[..., :3, 3], transforms)

@@ -131,7 +131,7 @@ class SmplBody(BodyModel):
         dtype = rotations.dtype
         smpl = load_smpl(str(Path(self.options.model_path).expanduser().resolve()), self.options.num_betas,
                          str(dtype).removeprefix("torch."))
-        betas = torch.stack([shape[k].to(dtype) for k in self.parameters], dim=1)
+        betas = torch.stack([shape[k].to(dtype) for k in self.parameters], dim=1).expand(len(rotations), -1)
         rest = smpl.v_template + blend_shapes(betas, smpl.shapedirs)
         rest_joints = vertices2joints(smpl.J_regressor, rest)
         ground = torch.stack([-rest_joints[:, 0, 0], -rest[..., 1].min(dim=1).values, -rest_joints[:, 0, 2]], dim=1)

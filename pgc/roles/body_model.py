@@ -16,9 +16,9 @@ Contract
 - :meth:`BodyModel.forward` -> :class:`BodyState`: vertices (V, 3), joints (J, 3) and skinning transforms
   (J, 4, 4) (rest point -> posed point) in float64, and the faces (F, 3) int64, counter-clockwise seen from
   outside. :meth:`BodyModel.skin` poses a clip: (T, J, 3, 3) and (T, 3) -> (T, V, 3) float32.
-- Differentiable: :meth:`BodyModel.forward_torch` takes torch tensors (shape values (B,), rotations
-  (B, J, 3, 3), translation (B, 3)) and returns tensors in their dtype (float32 or float64) with gradients
-  with respect to all three.
+- Differentiable: :meth:`BodyModel.forward_torch` takes torch tensors (shape values (B,) or (1,) for one shape
+  over the batch, rotations (B, J, 3, 3), translation (B, 3)) and returns tensors in the rotations' dtype
+  (float32 or float64) with gradients with respect to all three.
 """
 
 from __future__ import annotations
@@ -108,7 +108,7 @@ class BodyModel(RoleImplementation, ABC):
     @abstractmethod
     def forward_torch(self, shape: Mapping[str, "torch.Tensor"], rotations: "torch.Tensor",
                       translation: "torch.Tensor") -> BodyTensors:
-        """Pose a batch: ``shape`` name -> (B,) tensor (every parameter given, validated by the caller),
+        """Pose a batch: ``shape`` name -> (B,) or (1,) tensor (every parameter given, checked by the caller),
         ``rotations`` (B, J, 3, 3), ``translation`` (B, 3), all of one dtype; differentiable."""
 
     def check_shape(self, shape: Mapping[str, Any] | None) -> dict[str, float]:
@@ -142,7 +142,7 @@ class BodyModel(RoleImplementation, ABC):
         return Rig(self.joint_names, self.parents.copy(), self.forward(shape).joints)
 
     def skin(self, shape: Mapping[str, Any] | None, rotations: np.ndarray, translation: np.ndarray | None = None,
-             chunk: int = 32) -> np.ndarray:
+             chunk: int = 64) -> np.ndarray:
         """A clip: rotations (T, J, 3, 3) and translation (T, 3) -> vertices (T, V, 3) float32."""
         rotations = np.asarray(rotations, dtype=np.float64)
         if rotations.ndim != 4 or len(rotations) == 0:
@@ -185,8 +185,7 @@ class BodyModel(RoleImplementation, ABC):
         import torch
 
         with torch.no_grad():
-            B = len(rotations)
-            shape = {k: torch.full((B,), v, dtype=torch.float64) for k, v in values.items()}
+            shape = {k: torch.full((1,), v, dtype=torch.float64) for k, v in values.items()}
             out = self.forward_torch(shape, torch.from_numpy(np.ascontiguousarray(rotations)),
                                      torch.from_numpy(np.ascontiguousarray(translation)))
         return BodyTensors(out.vertices.double(), out.joints.double(), out.transforms.double())
