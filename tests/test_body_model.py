@@ -116,6 +116,18 @@ class TestContract:
         assert rest.vertices[:, 1].min() == pytest.approx(0.0, abs=1e-9)
         assert np.abs(rest.joints[0, [0, 2]]).max() < 1e-9
         np.testing.assert_allclose(rest.transforms, np.broadcast_to(np.eye(4), (J, 4, 4)), atol=1e-12)
+        assert body.weights.shape == (len(rest.vertices), J) and body.weights.min() > -1e-9  # Anny: -8e-11
+        np.testing.assert_allclose(body.weights.sum(axis=1), 1.0, atol=1e-6)
+
+    def test_rigid_skinning_follows_the_weights(self, body):
+        """Without pose-corrective shapes, a posed vertex is the weighted blend of its joints' transforms."""
+        rng = np.random.default_rng(7)
+        rest = body.forward()
+        state = body.forward(None, random_rotations(rng, len(body.joint_names), 0.3))
+        blended = np.einsum("vj,jab->vab", body.weights, state.transforms)
+        expected = np.einsum("vab,vb->va", blended[:, :3, :3], rest.vertices) + blended[:, :3, 3]
+        corrective = 0.01 if "beta0" in body.parameters else 1e-9  # SMPL adds pose blend shapes (tiny file: mm)
+        assert np.abs(state.vertices - expected).max() < corrective
 
     def test_faces_point_outward(self, body):
         rest = body.forward()

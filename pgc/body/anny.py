@@ -55,20 +55,27 @@ PHENOTYPES: dict[str, ShapeParameter] = {
 """Anny's phenotypes (its default set), with PGC's default: an adult of average build."""
 
 
+def import_anny():
+    """The ``anny`` package, imported (with torch; several seconds on a cold start)."""
+    import anny
+
+    return anny
+
+
 @functools.lru_cache(maxsize=4)
 def build_anny(topology: str, dtype_name: str = "float64"):
-    """Anny with the CMU rig and ``topology``, in ``dtype_name`` (cached per process; the first build of a
-    topology on a machine fills Anny's disk cache, about two minutes)."""
-    import anny
+    """Anny with the CMU rig and ``topology``, in ``dtype_name`` (cached per process; the first build on a machine
+    fills Anny's disk cache: docs/body.md has the times)."""
     import torch
 
+    anny = import_anny()
     if dtype_name != "float64":  # Anny's own dtype
         return copy.deepcopy(build_anny(topology)).to(getattr(torch, dtype_name))
     from anny.paths import get_anny_cache_path
 
-    if not any(get_anny_cache_path().glob("v*/build_compact_model_data_*.safetensors")):
-        log.warning("Anny builds its model data once (about two minutes) into %s; scripts/setup.sh does this at "
-                    "install time", get_anny_cache_path())
+    if not any(get_anny_cache_path().glob("v*/load_data_*.safetensors")):
+        log.warning("Anny builds its model data once (minutes, about 550 MB) into %s; scripts/setup.sh does this "
+                    "at install time", get_anny_cache_path())
     return anny.Anny(rig=RIG, topology=topology, skinning_method="lbs")
 
 
@@ -93,6 +100,10 @@ class AnnyBody(BodyModel):
     @functools.cached_property
     def faces(self) -> np.ndarray:
         return self._model.faces.cpu().numpy().astype(np.int64)
+
+    @functools.cached_property
+    def weights(self) -> np.ndarray:
+        return self._model.dense_vertex_bone_weights.cpu().numpy().astype(np.float64)
 
     def forward_torch(self, shape: Mapping[str, "torch.Tensor"], rotations: "torch.Tensor",
                       translation: "torch.Tensor") -> BodyTensors:

@@ -123,6 +123,10 @@ class SmplBody(BodyModel):
     def faces(self) -> np.ndarray:
         return np.asarray(self._smpl.faces, dtype=np.int64)
 
+    @functools.cached_property
+    def weights(self) -> np.ndarray:
+        return self._smpl.lbs_weights.cpu().numpy().astype(np.float64)
+
     def forward_torch(self, shape: Mapping[str, "torch.Tensor"], rotations: "torch.Tensor",
                       translation: "torch.Tensor") -> BodyTensors:
         import torch

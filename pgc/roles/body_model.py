@@ -10,6 +10,8 @@ Contract
 - Rig: :meth:`BodyModel.rig` -> joint names, parents (-1 for the root; parents come before their children)
   and rest joint positions (J, 3) for a shape. The joint set is the implementation's (``anny``: the CMU
   motion-capture skeleton; ``smplx``: SMPL's 24 joints); :attr:`BodyModel.joint_names` lists it.
+  :attr:`BodyModel.weights` (V, J): the linear-blend-skinning weights, non-negative up to round-off (1e-9),
+  rows summing to 1.
 - Pose: ``rotations`` (..., J, 3, 3) local rotations in the world-aligned axes of the rest pose, each about its
   joint's rest position (identity = rest pose; ``global_j = global_parent @ local_j``, the convention of
   :mod:`pgc.synth.skeleton`), and ``translation`` (..., 3) metres added to every point.
@@ -104,6 +106,11 @@ class BodyModel(RoleImplementation, ABC):
     @abstractmethod
     def faces(self) -> np.ndarray:
         """(F, 3) int64 triangles, counter-clockwise seen from outside."""
+
+    @property
+    @abstractmethod
+    def weights(self) -> np.ndarray:
+        """(V, J) float64 skinning weights, non-negative up to round-off, each row summing to 1."""
 
     @abstractmethod
     def forward_torch(self, shape: Mapping[str, "torch.Tensor"], rotations: "torch.Tensor",
