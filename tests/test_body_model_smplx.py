@@ -83,6 +83,7 @@ def random_pose(rng, J=24, scale=0.6):
 def test_rig_names_parents_and_rest_placement(body, tiny):
     rig = body.rig()
     assert rig.names[:3] == ("pelvis", "left_hip", "right_hip") and len(rig.names) == 24
+    assert rig.names[18:] == ("left_elbow", "right_elbow", "left_wrist", "right_wrist", "left_hand", "right_hand")
     assert rig.parents.tolist() == SMPL_PARENTS
     rest = body.forward()
     assert rest.vertices[:, 1].min() == pytest.approx(0.0, abs=1e-6)

@@ -108,10 +108,12 @@ class SmplBody(BodyModel):
 
     @functools.cached_property
     def joint_names(self) -> tuple[str, ...]:
-        from smplx.joint_names import JOINT_NAMES
+        from smplx.joint_names import JOINT_NAMES, SMPLH_JOINT_NAMES
 
+        names = {24: JOINT_NAMES[:22] + ["left_hand", "right_hand"], 52: SMPLH_JOINT_NAMES[:52],
+                 55: JOINT_NAMES[:55]}  # SMPL, SMPL+H, SMPL-X
         J = len(self.parents)
-        return tuple(JOINT_NAMES[:J]) if J == 24 else tuple(f"joint{j}" for j in range(J))
+        return tuple(names.get(J, [f"joint{j}" for j in range(J)]))
 
     @functools.cached_property
     def parents(self) -> np.ndarray:

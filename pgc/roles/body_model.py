@@ -9,7 +9,7 @@ Contract
   out-of-range values with one :class:`pgc.errors.PGCDataError` naming the parameter and its range.
 - Rig: :meth:`BodyModel.rig` -> joint names, parents (-1 for the root; parents come before their children)
   and rest joint positions (J, 3) for a shape. The joint set is the implementation's (``anny``: the CMU
-  motion-capture skeleton; ``smplx``: SMPL's 24 joints); :attr:`BodyModel.joint_names` lists it.
+  motion-capture skeleton; ``smplx``: SMPL's 24, SMPL+H's 52 or SMPL-X's 55 joints); :attr:`BodyModel.joint_names` lists it.
   :attr:`BodyModel.weights` (V, J): the linear-blend-skinning weights, non-negative up to round-off (1e-9),
   rows summing to 1.
 - Pose: ``rotations`` (..., J, 3, 3) local rotations in the world-aligned axes of the rest pose, each about its
@@ -142,7 +142,7 @@ class BodyModel(RoleImplementation, ABC):
         """The body of ``shape`` posed by ``rotations`` (J, 3, 3) and ``translation`` (3,) (both optional)."""
         rotations, translation = self._check_pose(rotations, translation, batch=())
         out = self._run(self.check_shape(shape), rotations[None], translation[None])
-        return BodyState(out.vertices[0].numpy(), self.faces, out.joints[0].numpy(), out.transforms[0].numpy())
+        return BodyState(out.vertices[0].numpy(), self.faces.copy(), out.joints[0].numpy(), out.transforms[0].numpy())
 
     def rig(self, shape: Mapping[str, Any] | None = None) -> Rig:
         """Joint names, parents and rest joint positions of ``shape``."""
