@@ -329,3 +329,12 @@ def test_anny_options_are_validated():
         impl.validate_options({"topology": "huge"})
     with pytest.raises(PGCConfigError, match="rig"):
         impl.validate_options({"rig": "mixamo"})
+
+
+@needs_anny
+def test_prepare_builds_the_default_topology(anny_body, capsys):
+    from pgc.body.prepare import main
+
+    assert main([]) == 0
+    err = capsys.readouterr().err
+    assert "[anny] notoes_collapse10pc: 1229 vertices, 31 joints, built in" in err and "MB" in err
