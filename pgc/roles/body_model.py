@@ -9,9 +9,9 @@ Contract
   out-of-range values with one :class:`pgc.errors.PGCDataError` naming the parameter and its range.
 - Rig: :meth:`BodyModel.rig` -> joint names, parents (-1 for the root; parents come before their children)
   and rest joint positions (J, 3) for a shape. The joint set is the implementation's (``anny``: the CMU
-  motion-capture skeleton; ``smplx``: SMPL's 24, SMPL+H's 52 or SMPL-X's 55 joints); :attr:`BodyModel.joint_names` lists it.
-  :attr:`BodyModel.weights` (V, J): the linear-blend-skinning weights, non-negative up to round-off (1e-9),
-  rows summing to 1.
+  motion-capture skeleton; ``smplx``: SMPL's 24, SMPL+H's 52 or SMPL-X's 55 joints);
+  :attr:`BodyModel.joint_names` lists it. :attr:`BodyModel.weights` (V, J): the linear-blend-skinning weights,
+  non-negative up to round-off (1e-9), rows summing to 1.
 - Pose: ``rotations`` (..., J, 3, 3) local rotations in the world-aligned axes of the rest pose, each about its
   joint's rest position (identity = rest pose; ``global_j = global_parent @ local_j``, the convention of
   :mod:`pgc.synth.skeleton`), and ``translation`` (..., 3) metres added to every point.
