@@ -21,6 +21,23 @@ CLIP_SUFFIXES = (".amc", ".bvh")
 """File suffixes read as captured clips."""
 SIM_FPS = 30.0
 """Frame rate clips are resampled to: the paper's 30 fps, that of the built-in motions."""
+SHIPPED_PREFIX = "cmu:"
+"""``--motion cmu:02_01`` names a clip shipped in ``pgc/data/motions/cmu`` (``.amc`` unless a suffix is given)."""
+
+
+def shipped_clips() -> Path:
+    """The folder of the shipped CMU clips (with their credit, README.md)."""
+    return Path(__file__).resolve().parent.parent / "data" / "motions" / "cmu"
+
+
+def shipped_clip(spec: str) -> Path:
+    """The file of a shipped clip named ``cmu:NAME`` (``NAME.amc`` unless NAME has a clip suffix)."""
+    name = spec[len(SHIPPED_PREFIX):]
+    path = shipped_clips() / (name if Path(name).suffix.lower() in CLIP_SUFFIXES else f"{name}.amc")
+    if not path.is_file():
+        names = sorted(p.name for p in shipped_clips().iterdir() if p.suffix in CLIP_SUFFIXES)
+        raise PGCDataError(f"motion '{spec}': no shipped clip {path.name}; shipped: {', '.join(names)}")
+    return path
 
 
 @dataclass(frozen=True)
@@ -35,8 +52,9 @@ class ClipOptions:
     """Metres per BVH length unit (default: centimetres)."""
 
 
-def is_clip(path: str | Path) -> bool:
-    return Path(path).suffix.lower() in CLIP_SUFFIXES
+def is_clip(spec: str | Path) -> bool:
+    """Whether ``--motion SPEC`` names a captured clip (a .amc or .bvh file, or ``cmu:NAME``)."""
+    return str(spec).startswith(SHIPPED_PREFIX) or Path(spec).suffix.lower() in CLIP_SUFFIXES
 
 
 def load_clip(path: str | Path, options: ClipOptions = ClipOptions()) -> Clip:
@@ -80,11 +98,11 @@ def clip_body_motion(path: str | Path, body, options: ClipOptions = ClipOptions(
 
 def resolve_motion(spec: str, capture_dir: Path | None, seconds: float | None = None,
                    clip: ClipOptions = ClipOptions()) -> BodyMotion:
-    """The BodyMotion of ``--motion SPEC``: a clip (.amc/.bvh, on the capture's body), a motion file (npz or
-    OBJ folder) or a built-in motion name (on the capture's body)."""
+    """The BodyMotion of ``--motion SPEC``: a clip (.amc/.bvh file or ``cmu:NAME``, on the capture's body), a
+    motion file (npz or OBJ folder) or a built-in motion name (on the capture's body)."""
     from pgc.synth.motions import MOTIONS, make_motion
 
-    path = Path(spec)
+    path = shipped_clip(spec) if spec.startswith(SHIPPED_PREFIX) else Path(spec)
     if path.exists() and not is_clip(path):
         from pgc.io.motion import load_motion
 
