@@ -308,15 +308,22 @@ def test_start_at_capture_begins_in_the_rest_pose_and_then_follows_the_clip(walk
     assert pos[-1, 0, 2] - pos[0, 0, 2] > 1.0
 
 
-def test_clip_on_the_synthetic_body_starts_in_the_capture_pose():
-    from pgc.motion.drive import clip_body_motion
-    from pgc.synth.body import make_body
+def test_clip_on_a_body_starts_in_the_capture_pose():
+    """A body whose vertices sit on its joints (one joint each): skinned, they follow the retargeted joints."""
+    from pgc.motion.drive import SIM_FPS, clip_body_motion
+    from pgc.synth.body import BodyModel
+    from pgc.synth.skeleton import BodyShape, JOINTS, PARENTS, rest_joints
 
-    body = make_body(edge_length=0.05)
+    rest = rest_joints(BodyShape())
+    body = BodyModel(rest, np.array([[0, 1, 2]]), rest, PARENTS, np.eye(len(JOINTS)))
     motion = clip_body_motion(CMU / "02_04.amc", body, seconds=1.0)
-    assert motion.fps == 30.0 and motion.num_frames == 31 and motion.name == "02_04"
-    np.testing.assert_allclose(motion.vertices[0], body.vertices, atol=1e-6)
-    assert np.abs(motion.vertices[-1] - body.vertices).max() > 0.1  # it moves
+    assert motion.fps == SIM_FPS == 30.0 and motion.num_frames == 31 and motion.name == "02_04"
+    np.testing.assert_allclose(motion.vertices[0], rest, atol=1e-6)
+    rig = Rig(JOINTS, PARENTS, rest)
+    clip = read_amc_clip(CMU / "02_04.amc")
+    joints = start_at_capture(trim(resample(retarget(clip, rig), 30.0), 1.0), rig).joint_positions(rig)
+    np.testing.assert_allclose(motion.vertices, joints, atol=1e-5)  # float32 vertices
+    assert np.abs(joints[-1] - rest).max() > 0.1  # it moves
 
 
 # bad input: one clear error each ---------------------------------------------------------------------
