@@ -15,6 +15,7 @@ global rotation is ``G = G_parent @ C @ M @ C^-1``, and its end lies ``length x 
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -311,12 +312,16 @@ def read_amc(path: str | Path, asf: AsfSkeleton) -> AmcFrames:
             known = "it has no degrees of freedom" if name in asf.bones else "the skeleton has no such bone"
             raise PGCDataError(f"{path}: line {number}: bone '{name}' does not match the skeleton {asf.path.name} "
                                f"({known}); use the ASF this clip was captured with (--skeleton FILE)")
-        values = _numbers(path, f"line {number} ({name})", tokens[1:])
+        try:
+            values = [float(t) for t in tokens[1:]]
+        except ValueError:
+            raise PGCDataError(f"{path}: line {number} ({name}): expected numbers, got '{' '.join(tokens[1:])}'; "
+                               "the file is garbled") from None
         if len(values) != expected[name]:
             raise PGCDataError(f"{path}: line {number}: bone '{name}' has {len(values)} values but its skeleton "
                                f"{asf.path.name} gives it {expected[name]} degrees of freedom; the skeleton does "
                                "not match the clip (use its own ASF: --skeleton FILE)")
-        if not np.all(np.isfinite(values)):
+        if not all(map(math.isfinite, values)):
             raise PGCDataError(f"{path}: line {number}: frame {len(frames) + 1}, bone '{name}': NaN or infinite "
                                "angles; repair or cut those frames in the capture software")
         current[name] = values
@@ -324,7 +329,8 @@ def read_amc(path: str | Path, asf: AsfSkeleton) -> AmcFrames:
         close(start)
     if not frames:
         raise PGCDataError(f"{path}: the clip has zero frames (no frame numbers followed by bone lines)")
-    return AmcFrames(path, {n: np.stack([f[n] for f in frames]) for n in expected}, angle_scale)
+    return AmcFrames(path, {n: np.array([f[n] for f in frames], np.float64).reshape(len(frames), expected[n])
+                            for n in expected}, angle_scale)
 
 
 def _dof_rotation(bone_dof: tuple[str, ...], values: np.ndarray, angle_scale: float) -> np.ndarray:
