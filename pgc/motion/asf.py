@@ -83,13 +83,11 @@ def _read_lines(path: Path, what: str) -> list[str]:
     if not path.is_file():
         raise PGCDataError(f"{path}: {what} file not found")
     limits.check_file_size(path, MAX_CLIP_BYTES, what)
+    data = path.read_bytes()
     try:
-        text = path.read_bytes().decode("utf-8")
-    except UnicodeDecodeError:
-        try:
-            text = path.read_bytes().decode("latin-1")
-        except UnicodeDecodeError:  # pragma: no cover - latin-1 decodes any bytes
-            raise PGCDataError(f"{path}: not a text file; expected an {what} file") from None
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:  # older exporters write Latin-1 comments
+        text = data.decode("latin-1")
     if "\x00" in text:
         raise PGCDataError(f"{path}: binary data (NUL bytes) where an {what} text file was expected")
     return [line.split("#", 1)[0].strip() for line in text.splitlines()]

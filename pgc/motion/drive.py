@@ -103,6 +103,8 @@ def resolve_motion(spec: str, capture_dir: Path | None, seconds: float | None = 
     from pgc.synth.motions import MOTIONS, make_motion
 
     path = shipped_clip(spec) if spec.startswith(SHIPPED_PREFIX) else Path(spec)
+    if is_clip(path) and not path.is_file():
+        raise PGCDataError(f"{path}: clip file not found")
     if path.exists() and not is_clip(path):
         from pgc.io.motion import load_motion
 
