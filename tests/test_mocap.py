@@ -14,7 +14,8 @@ from pgc.motion.bvh import read_bvh, write_bvh
 from pgc.motion.clip import Clip, Skeleton
 from pgc.motion.drive import load_clip, shipped_clip, shipped_clips
 from pgc.motion.joint_maps import CMU_TO_SYNTH
-from pgc.motion.retarget import Rig, RigMotion, resample, retarget, start_at_capture, trim
+from pgc.motion.retarget import (ARM_SPACE_DEG, Rig, RigMotion, keep_arms_clear, resample, retarget,
+                                 start_at_capture, trim)
 from pgc.motion.rotations import axis_rotation, euler_to_matrix, matrix_to_quaternion, quaternion_to_matrix
 
 CMU = shipped_clips()
@@ -321,9 +322,49 @@ def test_clip_on_a_body_starts_in_the_capture_pose():
     np.testing.assert_allclose(motion.vertices[0], rest, atol=1e-6)
     rig = Rig(JOINTS, PARENTS, rest)
     clip = read_amc_clip(CMU / "02_04.amc")
-    joints = start_at_capture(trim(resample(retarget(clip, rig), 30.0), 1.0), rig).joint_positions(rig)
+    joints = keep_arms_clear(start_at_capture(trim(resample(retarget(clip, rig), 30.0), 1.0), rig), rig
+                             ).joint_positions(rig)
     np.testing.assert_allclose(motion.vertices, joints, atol=1e-5)  # float32 vertices
     assert np.abs(joints[-1] - rest).max() > 0.1  # it moves
+
+
+def hanging_arm_angles(motion: RigMotion, rig: Rig) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per side: the upper arm's angle (degrees, outward positive) from the chest's down axis seen from the front,
+    and whether it hangs (points down, not across the body), per frame."""
+    from pgc.motion.clip import forward_kinematics
+
+    rot, pos = forward_kinematics(np.asarray(rig.parents), rig.offsets(), motion.rotations, motion.root_translation)
+    chest = rig.names.index("spine3")
+    out = {}
+    for side, sign in (("l", 1.0), ("r", -1.0)):
+        d = np.einsum("tba,tb->ta", rot[:, chest],
+                      pos[:, rig.names.index(f"{side}_elbow")] - pos[:, rig.names.index(f"{side}_shoulder")])
+        angle = np.degrees(np.arctan2(sign * d[:, 0], -d[:, 1]))
+        out[side] = angle, (d[:, 1] < 0) & (angle > -90)
+    return out
+
+
+@pytest.mark.parametrize("name", ["02_01", "02_05"])
+def test_hanging_arms_are_kept_clear_of_the_chest(name):
+    """No hanging upper arm comes closer than ARM_SPACE_DEG to the chest's down axis; arms already farther out,
+    and every joint but the shoulders, keep their rotations."""
+    from pgc.synth.skeleton import BodyShape, JOINTS, PARENTS, rest_joints
+
+    rig = Rig(JOINTS, PARENTS, rest_joints(BodyShape()))
+    before = start_at_capture(resample(retarget(read_amc_clip(CMU / f"{name}.amc"), rig), 30.0), rig)
+    after = keep_arms_clear(before, rig)
+    shoulders = [JOINTS.index("l_shoulder"), JOINTS.index("r_shoulder")]
+    others = [j for j in range(len(JOINTS)) if j not in shoulders]
+    np.testing.assert_array_equal(after.rotations[:, others], before.rotations[:, others])
+    old, new = hanging_arm_angles(before, rig), hanging_arm_angles(after, rig)
+    moved = 0
+    for side in ("l", "r"):
+        angle, hanging = new[side]
+        assert angle[hanging].min() >= ARM_SPACE_DEG - 1e-9
+        clear = old[side][1] & (old[side][0] >= ARM_SPACE_DEG)
+        np.testing.assert_allclose(angle[clear], old[side][0][clear], atol=1e-9)
+        moved += int(np.sum(old[side][1] & ~clear))
+    assert moved > 0
 
 
 # bad input: one clear error each ---------------------------------------------------------------------

@@ -2,8 +2,9 @@
 capture's body.
 
 A clip (``.amc`` with its ASF, ``.bvh``) is retargeted onto the body's rig, resampled to :data:`SIM_FPS`, cut
-to ``seconds``, moved to start in the capture pose (blending in over :data:`~pgc.motion.retarget.DEFAULT_RAMP_S`)
-and skinned with the body's weights.
+to ``seconds``, moved to start in the capture pose (blending in over :data:`~pgc.motion.retarget.DEFAULT_RAMP_S`),
+its hanging upper arms kept :data:`~pgc.motion.retarget.ARM_SPACE_DEG` from the chest, and skinned with the
+body's weights.
 """
 
 from __future__ import annotations
@@ -87,11 +88,12 @@ def clip_body_motion(path: str | Path, body, options: ClipOptions = ClipOptions(
                      joint_map: dict[str, str] | None = None) -> BodyMotion:
     """The vertices of ``body`` (a :class:`pgc.synth.body.BodyModel`) driven by the clip at ``path``, at
     :data:`SIM_FPS`, frame 0 the capture pose; ``seconds`` cuts the clip (default: all of it)."""
-    from pgc.motion.retarget import Rig, resample, retarget, start_at_capture, trim
+    from pgc.motion.retarget import Rig, keep_arms_clear, resample, retarget, start_at_capture, trim
 
     clip = load_clip(path, options)
     rig = Rig(tuple(body.joint_names), np.asarray(body.parents), np.asarray(body.joints, np.float64))
-    motion = start_at_capture(trim(resample(retarget(clip, rig, joint_map), SIM_FPS), seconds), rig)
+    motion = keep_arms_clear(start_at_capture(trim(resample(retarget(clip, rig, joint_map), SIM_FPS), seconds), rig),
+                             rig)
     vertices = body.pose(motion.rotations) + motion.root_translation[:, None, :]
     return BodyMotion(vertices.astype(np.float32), body.faces, fps=motion.fps, name=Path(path).stem)
 

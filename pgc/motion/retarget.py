@@ -21,7 +21,8 @@ import numpy as np
 from pgc.errors import PGCDataError
 from pgc.motion.clip import Clip, forward_kinematics
 from pgc.motion.joint_maps import resolve_joint_map
-from pgc.motion.rotations import matrix_to_quaternion, quaternion_to_matrix, rotation_aligning, slerp
+from pgc.motion.rotations import (axis_rotation, matrix_to_quaternion, quaternion_to_matrix, rotation_aligning,
+                                  slerp)
 
 DEFAULT_RAMP_S = 0.5
 """Seconds over which a clip blends in from the capture pose (a smoothstep)."""
@@ -157,3 +158,38 @@ def start_at_capture(motion: RigMotion, rig: Rig, ramp_s: float = DEFAULT_RAMP_S
     identity[..., 0] = 1.0
     rotations = quaternion_to_matrix(slerp(identity, q, np.broadcast_to(w[:, None], q.shape[:-1])))
     return RigMotion(rotations, translation * w[:, None], motion.fps)
+
+
+ARM_SPACE_DEG = 15.0
+"""Least angle (degrees) between a hanging upper arm and the chest's down axis, seen from the front, after
+retargeting (like the "arm space" of common retargeting tools). A clip's arms hang closer to its actor's torso
+than a broader body allows: copied as they are, the upper arms pass through the body's chest and pinch the
+garment (measured in docs/simulation.md)."""
+SHOULDERS: dict[str, float] = {"l_shoulder": 1.0, "r_shoulder": -1.0, "lhumerus": 1.0, "rhumerus": -1.0,
+                               "LeftArm": 1.0, "RightArm": -1.0}
+"""Upper-arm joints of the known rigs, with the side (+1: the person's left, +X)."""
+
+
+def keep_arms_clear(motion: RigMotion, rig: Rig, min_deg: float = ARM_SPACE_DEG) -> RigMotion:
+    """``motion`` with each hanging upper arm (the rig's joints among :data:`SHOULDERS`) turned outward about the
+    chest's forward axis where, seen from the front, it is less than ``min_deg`` from the chest's down axis.
+    The chest is the shoulder's grandparent (the clavicle's parent); the rest of the arm follows."""
+    parents = np.asarray(rig.parents)
+    rotations = motion.rotations.copy()
+    global_rot, pos = forward_kinematics(parents, rig.offsets(), rotations, motion.root_translation)
+    for name, side in SHOULDERS.items():
+        if name not in rig.names:
+            continue
+        j = rig.names.index(name)
+        child = next((k for k in range(j + 1, len(rig.names)) if parents[k] == j), None)
+        if child is None or parents[j] < 0 or parents[parents[j]] < 0:
+            continue
+        clavicle, chest = parents[j], parents[parents[j]]
+        d = np.einsum("tba,tb->ta", global_rot[:, chest], pos[:, child] - pos[:, j])  # in the chest's axes
+        angle = np.arctan2(side * d[:, 0], -d[:, 1])  # from the down axis, outward positive
+        deficit = np.where(d[:, 1] < 0, np.maximum(0.0, np.deg2rad(min_deg) - angle), 0.0)
+        deficit = np.where(angle < -np.pi / 2, 0.0, deficit)  # an arm across the body is left alone
+        turn = global_rot[:, chest] @ axis_rotation("Z", side * deficit) @ np.swapaxes(global_rot[:, chest], -1, -2)
+        shoulder = turn @ global_rot[:, j]
+        rotations[:, j] = np.swapaxes(global_rot[:, clavicle], -1, -2) @ shoulder
+    return RigMotion(rotations, motion.root_translation, motion.fps)
