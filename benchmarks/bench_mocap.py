@@ -2,13 +2,14 @@
 clips (docs/simulation.md, "Captured motion").
 
     python benchmarks/bench_mocap.py [--out DIR] [--resolution 0.03] [--simulator xpbd-native] [--no-sim]
+                                     [--arm-space DEG] [--name bench_mocap]
 
 Round trip: each AMC retargeted onto a rig built from its ASF's own skeleton, joint positions against the
 Acclaim forward kinematics of the ASF/AMC (``pgc.motion.asf.bone_end_positions``); and each clip written as BVH
 and read back. Penetration: the synthetic t-shirt (``--resolution`` metre edges) simulated at the simulator's
 default settings (the paper's: 30 fps, 30 substeps, 20 iterations) on the synthetic body driven by each clip;
 the fraction of garment vertices deeper than the collision offset inside the body, per frame. Writes
-``bench_mocap.json``.
+``NAME.json`` (``bench_mocap_no_arm_space.json`` is the run with ``--arm-space 0``).
 """
 
 from __future__ import annotations
@@ -67,7 +68,7 @@ def round_trips() -> list[dict]:
     return records
 
 
-def penetration(resolution: float, simulator: str) -> list[dict]:
+def penetration(resolution: float, simulator: str, arm_space: float | None) -> list[dict]:
     from pgc.events import Reporter
     from pgc.motion.drive import clip_body_motion, shipped_clips
     from pgc.synth.body import make_body
@@ -81,7 +82,7 @@ def penetration(resolution: float, simulator: str) -> list[dict]:
     records = []
     for name in CLIPS:
         start = time.perf_counter()
-        motion = clip_body_motion(shipped_clips() / f"{name}.amc", body)
+        motion = clip_body_motion(shipped_clips() / f"{name}.amc", body, arm_space_deg=arm_space)
         drive_s = time.perf_counter() - start
         start = time.perf_counter()
         out = cfg.create("simulator").simulate(cloth, motion, Reporter.silent())
@@ -89,6 +90,7 @@ def penetration(resolution: float, simulator: str) -> list[dict]:
         pen = np.asarray(out.figures["penetration_fraction"])
         records.append({"clip": name, "frames": motion.num_frames, "garment_vertices": len(cloth.vertices),
                         "body_vertices": len(body.vertices), "simulator": cfg.roles["simulator"].name,
+                        "arm_space_deg": arm_space,
                         "retarget_and_skin_s": drive_s, "simulate_s": sim_s,
                         "penetration_max": float(pen.max()), "penetration_mean": float(pen.mean()),
                         "frames_with_penetration": int(np.count_nonzero(pen > 0)),
@@ -104,13 +106,16 @@ def main() -> None:
     parser.add_argument("--resolution", type=float, default=0.03)
     parser.add_argument("--simulator", default="xpbd-native")
     parser.add_argument("--no-sim", action="store_true", help="skip the penetration study")
+    parser.add_argument("--arm-space", type=float, default=None,
+                        help="degrees (pgc.motion.retarget.keep_arms_clear; default: its own; 0: arms as captured)")
+    parser.add_argument("--name", default="bench_mocap", help="name of the JSON file written")
     args = parser.parse_args()
     result = {"round_trip": round_trips(), "versions": package_versions()}
     if not args.no_sim:
-        result["penetration"] = penetration(args.resolution, args.simulator)
+        result["penetration"] = penetration(args.resolution, args.simulator, args.arm_space)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "bench_mocap.json").write_text(json.dumps(result, indent=1))
+    (out / f"{args.name}.json").write_text(json.dumps(result, indent=1))
 
 
 if __name__ == "__main__":

@@ -85,15 +85,18 @@ def load_clip(path: str | Path, options: ClipOptions = ClipOptions()) -> Clip:
 
 
 def clip_body_motion(path: str | Path, body, options: ClipOptions = ClipOptions(), seconds: float | None = None,
-                     joint_map: dict[str, str] | None = None) -> BodyMotion:
+                     joint_map: dict[str, str] | None = None, arm_space_deg: float | None = None) -> BodyMotion:
     """The vertices of ``body`` (a :class:`pgc.synth.body.BodyModel`) driven by the clip at ``path``, at
-    :data:`SIM_FPS`, frame 0 the capture pose; ``seconds`` cuts the clip (default: all of it)."""
-    from pgc.motion.retarget import Rig, keep_arms_clear, resample, retarget, start_at_capture, trim
+    :data:`SIM_FPS`, frame 0 the capture pose; ``seconds`` cuts the clip (default: all of it);
+    ``arm_space_deg``: see :func:`pgc.motion.retarget.keep_arms_clear` (None: its default; 0: arms as captured)."""
+    from pgc.motion.retarget import ARM_SPACE_DEG, Rig, keep_arms_clear, resample, retarget, start_at_capture, trim
 
     clip = load_clip(path, options)
     rig = Rig(tuple(body.joint_names), np.asarray(body.parents), np.asarray(body.joints, np.float64))
-    motion = keep_arms_clear(start_at_capture(trim(resample(retarget(clip, rig, joint_map), SIM_FPS), seconds), rig),
-                             rig)
+    motion = start_at_capture(trim(resample(retarget(clip, rig, joint_map), SIM_FPS), seconds), rig)
+    space = ARM_SPACE_DEG if arm_space_deg is None else arm_space_deg
+    if space > 0:
+        motion = keep_arms_clear(motion, rig, space)
     vertices = body.pose(motion.rotations) + motion.root_translation[:, None, :]
     return BodyMotion(vertices.astype(np.float32), body.faces, fps=motion.fps, name=Path(path).stem)
 
