@@ -387,6 +387,9 @@ def _edit(tmp_path: Path, name: str, edit) -> Path:
                                                                   r"order 'XXY'"),
     (lambda s: s.replace("lhumerus lradius", "lhumerus lradiux"), r":hierarchy names bones the :bonedata "
                                                                   r"lacks: lradiux"),
+    (lambda s: s.replace("lradius lwrist", "lradius lwrist lhumerus"), r":hierarchy must reach every bone once "
+                                                                       r"from 'root' \(a bone has two parents or a "
+                                                                       r"cycle\)"),
 ])
 def test_bad_asf(tmp_path, edit, match):
     path = _edit(tmp_path, "02.asf", edit)
@@ -435,6 +438,16 @@ def test_bad_bvh(tmp_path, edit, match):
     path = _edit(tmp_path, "02_03.bvh", edit)
     with pytest.raises(PGCDataError, match=match):
         read_bvh(path)
+
+
+def test_bvh_nesting_is_bounded(tmp_path):
+    depth = 2000
+    text = ("HIERARCHY\nROOT j0\n{\n OFFSET 0 0 0\n CHANNELS 3 Xrotation Yrotation Zrotation\n"
+            + "".join(f"JOINT j{k}\n{{\n OFFSET 0 0.1 0\n CHANNELS 1 Xrotation\n" for k in range(1, depth))
+            + "}\n" * depth + "MOTION\nFrames: 1\nFrame Time: 0.01\n" + "0 " * (depth + 2) + "\n")
+    (tmp_path / "deep.bvh").write_text(text)
+    with pytest.raises(PGCDataError, match=r"deep\.bvh: line \d+: joints nest deeper than 256 levels"):
+        read_bvh(tmp_path / "deep.bvh")
 
 
 def test_bvh_in_unexpected_units(tmp_path):

@@ -71,11 +71,13 @@ class AsfSkeleton:
 
     def order(self) -> list[str]:
         """Bone names, parents before children (depth first from the root, in file order)."""
-        out, stack = [], list(reversed(self.children.get("root", [])))
+        out, seen, stack = [], set(), list(reversed(self.children.get("root", [])))
         while stack:
             name = stack.pop()
             out.append(name)
-            stack.extend(reversed(self.children.get(name, [])))
+            if name not in seen:  # a bone listed twice (or a cycle) is expanded once; read_asf refuses it
+                seen.add(name)
+                stack.extend(reversed(self.children.get(name, [])))
         return out
 
 
@@ -202,7 +204,7 @@ def read_asf(path: str | Path) -> AsfSkeleton:
     if len(listed) != len(set(listed)) or set(listed) != set(parsed):
         missing = sorted(set(parsed) - set(listed))
         raise PGCDataError(f"{path}: :hierarchy must reach every bone once from 'root' "
-                           f"({'unreached: ' + ', '.join(missing) if missing else 'a bone has two parents'})")
+                           f"({'unreached: ' + ', '.join(missing) if missing else 'a bone has two parents or a cycle'})")
     _check_height(path, asf_skeleton(asf).rest_positions(), "the :units length field",
                   f"CMU files say 'length 0.45' (1 unit = 1/0.45 inch); this file's is {units['length'][0]}")
     return asf

@@ -26,6 +26,8 @@ DEFAULT_UNIT_M = 0.01
 """Metres per BVH length unit when the caller gives none (centimetres, the common exporters' unit)."""
 _POSITION = ("Xposition", "Yposition", "Zposition")
 _ROTATION = {"Xrotation": "X", "Yrotation": "Y", "Zrotation": "Z"}
+MAX_DEPTH = 256
+"""Deepest joint nesting read (a body's chains nest about 10 levels)."""
 WRITE_ORDER = "ZYX"
 """Rotation channel order of written files (``Zrotation Yrotation Xrotation``, as CMU's BVH conversions)."""
 
@@ -82,7 +84,10 @@ def read_bvh(path: str | Path, unit_m: float = DEFAULT_UNIT_M) -> Clip:
     offsets: list[np.ndarray] = []
     channels: list[list[str]] = []
 
-    def block(parent: int, kind: str) -> None:
+    def block(parent: int, kind: str, depth: int = 0) -> None:
+        if depth > MAX_DEPTH:
+            raise PGCDataError(f"{path}: line {tokens.line}: joints nest deeper than {MAX_DEPTH} levels; the file "
+                               "is garbled or not a body's skeleton")
         if kind == "End":
             tokens.expect("Site")
             name = f"{names[parent]}_end"
@@ -111,7 +116,7 @@ def read_bvh(path: str | Path, unit_m: float = DEFAULT_UNIT_M) -> Clip:
                 return
             if kind == "End" or tok not in ("JOINT", "End"):
                 raise PGCDataError(f"{path}: line {tokens.line}: unexpected '{tok}' in '{name}'; the file is garbled")
-            block(index, tok)
+            block(index, tok, depth + 1)
 
     tokens.expect("ROOT")
     block(-1, "ROOT")
