@@ -99,7 +99,8 @@ def _numbers(path: Path, where: str, tokens: list[str], count: int | None = None
     try:
         values = np.array([float(t) for t in tokens], dtype=np.float64)
     except ValueError:
-        raise PGCDataError(f"{path}: {where}: expected numbers, got '{' '.join(tokens)}'; the file is garbled") from None
+        raise PGCDataError(f"{path}: {where}: expected numbers, got '{' '.join(tokens)}'; the file is "
+                           "garbled") from None
     if count is not None and len(values) != count:
         raise PGCDataError(f"{path}: {where}: expected {count} numbers, got {len(values)} ('{' '.join(tokens)}')")
     return values
@@ -203,8 +204,8 @@ def read_asf(path: str | Path) -> AsfSkeleton:
         raise PGCDataError(f"{path}: :hierarchy names bones the :bonedata lacks: {', '.join(unknown)}")
     if len(listed) != len(set(listed)) or set(listed) != set(parsed):
         missing = sorted(set(parsed) - set(listed))
-        raise PGCDataError(f"{path}: :hierarchy must reach every bone once from 'root' "
-                           f"({'unreached: ' + ', '.join(missing) if missing else 'a bone has two parents or a cycle'})")
+        problem = f"unreached: {', '.join(missing)}" if missing else "a bone has two parents or a cycle"
+        raise PGCDataError(f"{path}: :hierarchy must reach every bone once from 'root' ({problem})")
     _check_height(path, asf_skeleton(asf).rest_positions(), "the :units length field",
                   f"CMU files say 'length 0.45' (1 unit = 1/0.45 inch); this file's is {units['length'][0]}")
     return asf

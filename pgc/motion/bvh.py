@@ -29,7 +29,8 @@ _ROTATION = {"Xrotation": "X", "Yrotation": "Y", "Zrotation": "Z"}
 MAX_DEPTH = 256
 """Deepest joint nesting read (a body's chains nest about 10 levels)."""
 WRITE_ORDER = "ZYX"
-"""Rotation channel order of written files (``Zrotation Yrotation Xrotation``, as CMU's BVH conversions)."""
+"""Rotation channel order of written files (``Zrotation Yrotation Xrotation``, as CMU's BVH conversions; the
+angles come from :func:`matrix_to_euler_zyx`)."""
 
 
 class _Tokens:
@@ -209,7 +210,8 @@ def matrix_to_euler_zyx(m: np.ndarray) -> np.ndarray:
     z = np.where(regular, np.arctan2(m[..., 1, 0], m[..., 0, 0]), 0.0)
     x_regular = np.arctan2(m[..., 2, 1], m[..., 2, 2])
     # gimbal lock (y = +-90 degrees): only x - z (y > 0) or x + z (y < 0) is determined; z = 0
-    x_lock = np.where(m[..., 2, 0] < 0, np.arctan2(m[..., 0, 1], m[..., 0, 2]), np.arctan2(-m[..., 0, 1], -m[..., 0, 2]))
+    x_lock = np.where(m[..., 2, 0] < 0, np.arctan2(m[..., 0, 1], m[..., 0, 2]),
+                      np.arctan2(-m[..., 0, 1], -m[..., 0, 2]))
     return np.stack([z, y, np.where(regular, x_regular, x_lock)], axis=-1)
 
 
@@ -240,7 +242,7 @@ def write_bvh(path: str | Path, clip: Clip, unit_m: float = DEFAULT_UNIT_M) -> N
         order.append(j)
         out.append(f"{pad}{'ROOT' if sk.parents[j] < 0 else 'JOINT'} {sk.names[j]}")
         out.extend([f"{pad}{{", f"{pad}  OFFSET {off}"])
-        chans = "Zrotation Yrotation Xrotation"
+        chans = " ".join(f"{axis}rotation" for axis in WRITE_ORDER)
         out.append(f"{pad}  CHANNELS 6 Xposition Yposition Zposition {chans}" if sk.parents[j] < 0
                    else f"{pad}  CHANNELS 3 {chans}")
         for c in children[j]:

@@ -9,9 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 
-AXES = "XYZ"
-
-
 def axis_rotation(axis: str, angle: np.ndarray) -> np.ndarray:
     """(..., 3, 3) rotations by ``angle`` (...,) radians about the coordinate axis ``axis`` ('X', 'Y' or 'Z')."""
     angle = np.asarray(angle, dtype=np.float64)
@@ -57,7 +54,8 @@ def quaternion_to_matrix(q: np.ndarray) -> np.ndarray:
     w, x, y, z = np.moveaxis(q / np.linalg.norm(q, axis=-1, keepdims=True), -1, 0)
     return np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
                      2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-                     2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1).reshape(q.shape[:-1] + (3, 3))
+                     2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1
+                    ).reshape(q.shape[:-1] + (3, 3))
 
 
 def slerp(q0: np.ndarray, q1: np.ndarray, t: np.ndarray) -> np.ndarray:
