@@ -2,7 +2,7 @@
 
 A motion is a built-in name (goalpost, spooky, arms-up, walk, arm-swing: the body model stored with a
 synthetic capture, posed by :func:`pgc.synth.motions.make_motion`), a captured clip (.amc with its ASF, or
-.bvh: retargeted onto that body, :mod:`pgc.motion.drive`) or a file (an .npz with ``vertices`` (T, V, 3) and
+.bvh: retargeted onto that body, :mod:`pgc.pipeline.motion_source`) or a file (an .npz with ``vertices`` (T, V, 3) and
 ``faces``, or a folder of OBJ frames) whose frame 0 is the capture pose.
 
 Run folder: ``run.json`` (asset, motion, fps, simulator, figures), ``garment.npz`` (vertices (T, V, 3)),
@@ -21,7 +21,8 @@ from pgc.events import Reporter
 from pgc.io.atomic import write_json
 from pgc.io.limits import read_json
 from pgc.io.timings import split_timings, write_timings
-from pgc.motion.drive import ClipOptions, resolve_motion
+from pgc.motion.drive import ClipOptions
+from pgc.pipeline.motion_source import resolve_motion
 from pgc.pipeline.cache import StageCache, array_key, asset_key, content_key
 from pgc.pipeline.stage_io import save_npz
 
