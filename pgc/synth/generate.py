@@ -74,7 +74,7 @@ PRESETS: dict[str, SynthPreset] = {
     "large": SynthPreset(views=64, resolution=1024, body_edge=0.015, garment_edge=0.012, texture=2048, spp=64,
                          gt_samples=4, fibre_scale=2.0, envmap_height=256),
     "knit": SynthPreset(views=32, resolution=320, body_edge=0.022, garment_edge=0.02, texture=1024, spp=64,
-                        gt_samples=4, fibre_scale=20.0, fabric="rib-knit", framing="garment", detail="relief",
+                        gt_samples=4, fibre_scale=20.0, fabric="rib-knit-sheen", framing="garment", detail="relief",
                         fit="resting", looseness=0.012),
 }
 
