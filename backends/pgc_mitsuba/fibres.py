@@ -3,10 +3,11 @@
 The polylines become ``linearcurve`` shapes (round linear segments of constant radius) whose control
 points are set through ``mi.traverse``, so hundreds of thousands of fibres load without a text file.
 Mitsuba drops a few curve hits as back faces after Embree has reported them (the ray is then lost, as if it
-had missed everything): 0.1 % of the rays looking down standing fibres, 7 times more with tapered tips, so
-the radius is constant (docs/synth.md, "Fibre truths"). A fibre truth's layer (``fibres.hair``) is one shape per colour group, shaded by Mitsuba's
-``hair`` BSDF with the absorption of :func:`pgc.synth.fabrics.hair_absorption`; a control's sparse fibres
-are one shape shaded by the garment's BRDF in the fibres' colour. Shape ids start with ``FIBRE_ID``.
+had missed everything): at most 0.4 % of the rays (looking down velvet's pile), several times more with
+tapered tips, so the radius is constant (docs/synth.md, "Fibre truths"). A fibre truth's layer
+(``fibres.hair``) is one shape per colour group, shaded by Mitsuba's ``hair`` BSDF with the absorption of
+:func:`pgc.synth.fabrics.hair_absorption`; a control's sparse fibres are one shape shaded by the garment's
+BRDF in the fibres' colour. Shape ids start with ``FIBRE_ID``.
 """
 
 from __future__ import annotations

@@ -35,8 +35,8 @@ presets: tiny (6 views, 64 px, seconds)
            with seams, ribbed hems, a patch pocket and folds as geometry)
          cotton (the earlier default: 128 views at 256 px of the whole body; the same tee, loose, no detail)
          large (64 views, 1024 px, whole body)
-         knit (32 views, 320 px, garment framing: a rib-knit (pgc-sheen) tee resting on the body with knit relief, ribbed
-           bands, seams, a patch pocket and folds as geometry, and fibre fuzz)
+         knit (32 views, 320 px, garment framing: a rib-knit (pgc-sheen) tee resting on the body with knit
+           relief, ribbed bands, seams, a patch pocket and folds as geometry, and fibre fuzz)
 fabrics: fibre truths (a Lambertian surface under a layer of fibres shaded by a fibre scattering model):
            cotton, fleece, knit, velvet, satin
          in-family controls (the BRDFs the material fit chooses from): cotton-sheen, fleece-sheen,

@@ -120,7 +120,8 @@ def material_record(gt: GroundTruth, fabric: str | None) -> dict:
         layer = {"model": "mitsuba hair (Chiang et al. 2016) on linear curves", **f.hair.record(),
                  "count": len(f.face), "colors": palette.tolist(),
                  "sigma_a": hair_absorption(palette, f.hair.azimuthal_roughness).tolist()}
-    return {"appearance": appearance(gt.material.brdf, None if f is None else f.hair), "surface": {"brdf": gt.material.brdf, "params": dict(gt.material.params)},
+    return {"appearance": appearance(gt.material.brdf, None if f is None else f.hair),
+            "surface": {"brdf": gt.material.brdf, "params": dict(gt.material.params)},
             "fibre_layer": layer, "fabric": fabric, "base_color": "base_color.exr",
             "normal_map": None if gt.normal_map is None else "normal_map.exr", "skin_albedo": list(gt.skin_albedo)}
 
