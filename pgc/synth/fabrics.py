@@ -431,5 +431,6 @@ def _hair_fibres(fabric: Fabric, garment: Mesh, material: Material, seed: int, s
     group = np.searchsorted(used, group)
     palette = np.stack([rgb[group == g].mean(axis=0) for g in range(len(used))])
     color = np.bincount(group, minlength=len(used)) @ palette / count
-    return Fibres(face, bary.astype(np.float32), direction, layer.length, layer.radius, np.clip(color, 0, 1),
-                  hair=layer, group=group.astype(np.int32), palette=np.clip(palette, 0, 1).astype(np.float32))
+    return Fibres(face.astype(np.int32), bary.astype(np.float32), direction, layer.length, layer.radius,
+                  np.clip(color, 0, 1), hair=layer, group=group.astype(np.int32),
+                  palette=np.clip(palette, 0, 1).astype(np.float32))
