@@ -21,7 +21,7 @@ def tiny(tmp_path_factory, default_scene_renderer):
     from pgc.synth.generate import generate
 
     out = tmp_path_factory.mktemp("synth") / "tiny"
-    generate(out, "tiny", garment="tshirt", fabric="cotton", seed=1, renderer=default_scene_renderer)
+    generate(out, "tiny", garment="tshirt", fabric="cotton-sheen", seed=1, renderer=default_scene_renderer)
     return out
 
 

@@ -210,7 +210,7 @@ def capture(tmp_path_factory, default_scene_renderer):
     from pgc.synth.generate import generate, get_preset
 
     out = tmp_path_factory.mktemp("synth_detail") / "tiny"
-    generate(out, get_preset("tiny", views=2, resolution=48), fabric="rib-knit", detail="relief", fit="resting",
+    generate(out, get_preset("tiny", views=2, resolution=48), fabric="rib-knit-sheen", detail="relief", fit="resting",
              looseness=0.012, seed=2, renderer=default_scene_renderer)
     return out
 

@@ -1,6 +1,6 @@
 """What is embedded in a triangle mesh and follows its deformation: points at a barycentric position in a
-parent face plus an offset along the interpolated vertex normal (:func:`embedded_points`), short fibres rooted
-on faces (:class:`Fibres`) and a fine surface on each face's barycentric lattice (:class:`DetailSurface`).
+parent face plus an offset along the interpolated vertex normal (:func:`embedded_points`) and a fine surface
+on each face's barycentric lattice (:class:`DetailSurface`); fibres rooted on faces are :mod:`pgc.geometry.fibres`.
 
 They describe a synthetic scene's near field (:class:`pgc.roles.scene_renderer.SceneGeometry`): the generator
 (:mod:`pgc.synth`) makes them, a scene renderer places them on any pose of the garment.
@@ -108,34 +108,3 @@ class DetailSurface:
         _, _, faces, face_uv, uv, _ = self._topology
         labels = np.full(len(faces), GARMENT_LABEL, np.int32)
         return Mesh(self.vertices(garment_vertices), faces, uv, face_uv, labels, name)
-
-
-@dataclass
-class Fibres:
-    """Short fibres rooted on garment faces; they follow any deformation of the garment."""
-
-    face: np.ndarray
-    """(N,) root face index."""
-    bary: np.ndarray
-    """(N, 3) barycentric root position."""
-    direction: np.ndarray
-    """(N, K - 1, 3) segment directions in the local (tangent, bitangent, normal) frame of the face."""
-    length: float
-    radius: float
-    color: np.ndarray
-    """(3,) linear RGB base colour of the fibres."""
-    offset: np.ndarray | None = None
-    """(N,) root offset along the interpolated garment normal, metres (roots on a detail relief)."""
-
-    def control_points(self, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-        """(N, K, 3) polyline control points on a garment with ``vertices`` (its rest or a deformed pose)."""
-        v = vertices[faces[self.face]]
-        root = embedded_points(vertices, faces, self.face, self.bary, self.offset)
-        e1 = v[:, 1] - v[:, 0]
-        n = np.cross(e1, v[:, 2] - v[:, 0])
-        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-20)
-        t = e1 / np.maximum(np.linalg.norm(e1, axis=1, keepdims=True), 1e-20)
-        b = np.cross(n, t)
-        frame = np.stack([t, b, n], axis=1)  # (N, 3, 3) rows: tangent, bitangent, normal
-        steps = np.einsum("nsk,nkd->nsd", self.direction, frame) * (self.length / self.direction.shape[1])
-        return np.concatenate([root[:, None], root[:, None] + np.cumsum(steps, axis=1)], axis=1)

@@ -36,7 +36,8 @@ from typing import Any
 
 import numpy as np
 
-from pgc.geometry.embedded import DetailSurface, Fibres
+from pgc.geometry.embedded import DetailSurface
+from pgc.geometry.fibres import Fibres
 from pgc.roles._base import RoleImplementation
 from pgc.texture.sample import sample_uv
 from pgc.types import BACKGROUND_LABEL, BODY_LABEL, GARMENT_LABEL, Camera, Light, Material, Mesh
