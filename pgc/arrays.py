@@ -220,9 +220,6 @@ class TorchOps(ArrayOps):
 class JaxOps(ArrayOps):
     name = "jax"
 
-    def asarray(self, value: Any, dtype: Any = None, like: Any = None) -> Any:
-        return self.xp.asarray(value, dtype=self._dtype(dtype, like))
-
     def index_add(self, a: Any, idx: Any, values: Any) -> Any:
         return a.at[idx].add(values)
 
