@@ -111,12 +111,12 @@ class Chromium:
         self.js(f"new Promise(done => {{ let n = {count}; const tick = () => --n ? requestAnimationFrame(tick) "
                 ": done(true); requestAnimationFrame(tick); })")
 
-    def shot(self, selector: str) -> np.ndarray:
+    def shot(self, selector: str, timeout: float = 60.0) -> np.ndarray:
         """RGB (H, W, 3) uint8 of the element ``selector`` as drawn."""
         self.js(f"document.querySelector({json.dumps(selector)}).scrollIntoView()")
         box = self.js(f"(r => [r.x + scrollX, r.y + scrollY, r.width, r.height])(document.querySelector("
                       f"{json.dumps(selector)}).getBoundingClientRect())")  # the clip is in page coordinates
-        data = self.call("Page.captureScreenshot", format="png",
+        data = self.call("Page.captureScreenshot", timeout, format="png",
                          clip=dict(zip(("x", "y", "width", "height"), box), scale=1))["data"]
         return np.asarray(Image.open(io.BytesIO(base64.b64decode(data))).convert("RGB"))
 

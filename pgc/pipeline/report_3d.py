@@ -110,13 +110,15 @@ PAGE_SCRIPT = """<script>
   viewer.addEventListener('error', function (e) {
     say('error', 'the model did not load: ' + ((e.detail && e.detail.type) || 'error') + ' (WebGL off?)');
   });
-  var bytes = Uint8Array.from(atob(window.pgcModelBase64), function (c) { return c.charCodeAt(0); });
-  var url = URL.createObjectURL(new Blob([bytes], {type: 'model/gltf-binary'}));
-  document.getElementById('view3d-download').href = url;
-  viewer.src = url;
+  fetch('data:model/gltf-binary;base64,' + window.pgcModelBase64).then(function (r) { return r.blob(); })
+    .then(function (blob) {
+      var url = URL.createObjectURL(blob);
+      document.getElementById('view3d-download').href = url;
+      viewer.src = url;
+    });
 })();
 </script>"""
-"""Turns the embedded ``.glb`` into a blob: URL for the viewer and the download link, and reports the load in
+"""Decodes the embedded ``.glb`` (natively, through a data: URL) into a blob: URL for the viewer and the download link, and reports the load in
 ``#view3d-status`` (``data-state``: loading, loaded, error)."""
 
 def _offline(figures: str) -> str:
