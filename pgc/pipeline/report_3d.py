@@ -4,10 +4,10 @@ The viewer is vendored by ``scripts/setup.sh`` (``npm ci`` in ``pgc/report_viewe
 ``package-lock.json``); the report copies its one-file UMD bundle and the licences of what it bundles into the
 report folder. A page opened from disk may not fetch the files beside it (Chromium and Firefox refuse
 ``fetch`` of ``file://``), so the run's glTF export travels as a classic script, ``MOTION_3d.js``: the ``.glb``
-in base64, which the page turns into a ``blob:`` URL for the viewer. The viewer's default decoder locations
-(Draco, KTX2, Lottie: a CDN) are pointed at the report folder before the element is built; the export uses
-none of those encodings, so nothing is fetched at all. The environment light is model-viewer's built-in
-procedural ``neutral`` one.
+in base64, which the page decodes (through a ``data:`` URL) into a ``blob:`` URL for the viewer. The viewer's
+default decoder locations (Draco, KTX2, Lottie: a CDN) are pointed at the report folder before the element is
+built; the export uses none of those encodings, so nothing is fetched at all. The environment light is
+model-viewer's built-in procedural ``neutral`` one.
 """
 
 from __future__ import annotations
@@ -115,11 +115,13 @@ PAGE_SCRIPT = """<script>
       var url = URL.createObjectURL(blob);
       document.getElementById('view3d-download').href = url;
       viewer.src = url;
-    });
+    })
+    .catch(function (e) { say('error', 'the embedded model could not be decoded: ' + e); });
 })();
 </script>"""
-"""Decodes the embedded ``.glb`` (natively, through a data: URL) into a blob: URL for the viewer and the download link, and reports the load in
-``#view3d-status`` (``data-state``: loading, loaded, error)."""
+"""Decodes the embedded ``.glb`` (natively, through a data: URL) into a blob: URL for the viewer and the download
+link, and reports the load in ``#view3d-status`` (``data-state``: loading, loaded, error)."""
+
 
 def _offline(figures: str) -> str:
     """Read by each <model-viewer> when it is built: decoders from the report folder, never a CDN."""
