@@ -22,6 +22,18 @@ if [ ${#need_pkgs[@]} -gt 0 ]; then
   fi
 fi
 
+# The report's 3D viewer (docs/report.md): @google/model-viewer from the npm registry, pinned by
+# pgc/report_viewer/package-lock.json, into pgc/report_viewer/node_modules (git ignores it); skipped while the
+# lock is the one last installed. Without npm (or the registry) the report builds and says how to get it.
+viewer=pgc/report_viewer
+if ! cmp -s "$viewer/package-lock.json" "$viewer/node_modules/.pgc-installed-lock"; then
+  if command -v npm >/dev/null 2>&1 && (cd "$viewer" && npm ci --no-audit --no-fund --loglevel=error >/dev/null); then
+    cp "$viewer/package-lock.json" "$viewer/node_modules/.pgc-installed-lock"
+  else
+    echo "[setup] warning: the report's 3D viewer is not installed (needs npm: 'cd $viewer && npm ci')" >&2
+  fi
+fi
+
 stamp_src=$(cat pyproject.toml scripts/setup.sh examples/pgc-example-plugin/pyproject.toml | sha256sum | cut -d' ' -f1)
 stamp_file="$VENV/.pgc-setup-stamp"
 if [ -f "$stamp_file" ] && [ "$(cat "$stamp_file")" = "$stamp_src" ] && [ -x "$VENV/bin/pgc" ]; then
