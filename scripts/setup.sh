@@ -11,6 +11,7 @@ need_pkgs=()
 for p in libllvm19 libusb-1.0-0 libgl1 libegl1 libx11-6 libgomp1 g++ chromium; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || need_pkgs+=("$p")
 done
+command -v npm >/dev/null 2>&1 || need_pkgs+=(npm)  # the report's 3D viewer (any Node.js with its npm will do)
 if [ ${#need_pkgs[@]} -gt 0 ]; then
   if command -v apt-get >/dev/null 2>&1; then
     SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO="sudo"
