@@ -45,7 +45,7 @@ from typing import Any, Callable
 import numpy as np
 
 from pgc.brdfs.fitdata import psnr_from_mse
-from pgc.brdfs.scenes import checker_texture, folded_sheet, ring_cameras
+from pgc.testing.pbr_scenes import checker_texture, folded_sheet, ring_cameras
 from pgc.registry import default_registry
 from pgc.types import Light, Material
 

@@ -13,7 +13,7 @@ is shared, wall-clock seconds are noisy). Records follow docs/bench.md, "Record 
     python benchmarks/bench_reconstruct.py [--capture DIR] [--implementations visual_hull open3d colmap mesh]
                                            [--target-vertices 15000] [--out bench_reconstruct.json]
 
-Without ``--capture`` a default-like scene is made in-process (pgc.geometry.testscene: 32 views, 256 px).
+Without ``--capture`` a default-like scene is made in-process (pgc.testing.capture_scenes: 32 views, 256 px).
 With a ``pgc synth`` capture the ground truth is ``ground_truth/full.ply`` (face labels included).
 """
 
@@ -51,7 +51,7 @@ def _reconstruct(name: str, capture: Any, options: dict[str, Any]) -> dict[str, 
 def load_scene(capture_dir: str | None) -> tuple[Any, Any, str]:
     """The capture, its ground-truth mesh (with face labels) and a scene name."""
     if capture_dir is None:
-        from pgc.geometry.testscene import body_mesh, make_capture
+        from pgc.testing.capture_scenes import body_mesh, make_capture
 
         cap, gt = make_capture(body_mesh(0.008), views=32, size=256)
         return cap, gt, "testscene-32x256"

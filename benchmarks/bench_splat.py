@@ -3,7 +3,7 @@
 
 Forward and forward+backward seconds per view for every installed splat renderer (built through the
 registry) at each image size and Gaussian count, on Gaussians covering the surface of the test body
-(pgc.geometry.testscene) with a fitted-like density; ratios to the torch renderer of the same run. The float64
+(pgc.testing.capture_scenes) with a fitted-like density; ratios to the torch renderer of the same run. The float64
 per-pixel reference (pgc.splats.reference) runs only on a tiny scene (it loops over pixels in Python); there
 each backend's time is also a ratio to it and its error is the largest absolute difference to it. At the
 larger sizes the error is the largest difference to the torch image. ``--fit`` also fits splats on a capture
@@ -11,9 +11,10 @@ larger sizes the error is the largest difference to the torch image. ``--fit`` a
 records the held-out PSNR against time. Records (JSON): role, implementation, preset, settings, seconds,
 errors, versions.
 
-The kernel table (``--kernel-sizes``, ``--kernel-counts``; default 256 px, 50k Gaussians) times one view of
-the torch renderer's paths side by side: "fused" (one compiled call each way), "cpp" (torch projection and
-binning, compiled compositing) and the JAX renderer's forward+backward; it reports Gaussian-pixel pairs per
+The kernel table (``--kernel-sizes``, ``--kernel-counts``; default 256 px, 50k Gaussians) times one view on
+every render path side by side: the torch renderer's "fused" (one compiled call each way) and "torch" (the
+shared projection, pure-torch compositing; at the first thread count only) and the JAX renderer's
+forward+backward on the fused kernel and on XLA's compositor; it reports Gaussian-pixel pairs per
 second (pairs inside the footprint boxes, counted by the fused kernel) and, from the same run, this machine's
 float FMA peak and exp throughput (compiled loops with the kernel's flags) and torch's sgemm GFLOP/s, so the
 kernel's FLOP rate (FORWARD_FLOPS / BACKWARD_FLOPS per pair) shows as a fraction of them. Times there are CPU
@@ -41,7 +42,7 @@ from bench_filter import PeakRSS, print_table, timed  # noqa: E402
 
 def surface_scene(count: int, size: int, seed: int = 0):
     """World Gaussians on the test body (flat discs of the sampling spacing, opacity 0.8) and a dome camera."""
-    from pgc.geometry.testscene import body_mesh, dome_cameras
+    from pgc.testing.capture_scenes import body_mesh, dome_cameras
     from pgc.splats.binding import bind
     from pgc.splats.init import sample_on_mesh
 
@@ -71,7 +72,7 @@ def torch_backward(renderer, world, camera):
     closure returns the gradients (numpy)."""
     import torch
 
-    from pgc_torch.splat.binding import quat_to_rotmat
+    from pgc.splats.quaternion import quat_to_rotmat
     from pgc_torch.threads import torch_threads
 
     @torch_threads(1)
@@ -91,8 +92,8 @@ def jax_backward(renderer, world, camera):
     import jax
     import jax.numpy as jnp
 
+    from pgc.splats.quaternion import quat_to_rotmat
     from pgc_jax.splat.fused import camera_bits, fused_render
-    from pgc_jax.splat.project import quat_to_rotmat
     from pgc_jax.splat.render import camera_arrays, make_bins, render_bound
 
     o = renderer.options
@@ -157,11 +158,11 @@ def sgemm_flops(threads: int, n: int = 1024, repeats: int = 5) -> float:
 
 
 def kernel_benchmarks(args, reg, env) -> list[dict[str, Any]]:
-    """fused vs cpp vs JAX on one view, pair throughput and its fraction of the measured machine peaks."""
+    """Every render path on one view, pair throughput and its fraction of the measured machine peaks."""
     import torch
 
     from pgc.splats import fused
-    from pgc_torch.splat.binding import quat_to_rotmat
+    from pgc.splats.quaternion import quat_to_rotmat
     from pgc_torch.splat.rasterizer import rasterize
     from pgc_torch.threads import torch_threads
 
@@ -199,7 +200,7 @@ def kernel_benchmarks(args, reg, env) -> list[dict[str, Any]]:
             return run
 
         measured = {}
-        for backend in ("fused", "cpp"):
+        for backend in ("fused", "torch") if threads == args.threads[0] else ("fused",):  # torch: one thread
             measured[backend] = (min_time(forward(backend), args.repeats),
                                  min_time(backward(backend), args.repeats))
         if jax_ok:  # forward+backward only (the JAX forward is the same kernel call, or XLA's)
@@ -309,7 +310,7 @@ def fit_benchmark(args, reg, env) -> list[dict[str, Any]]:
         capture = read_capture(args.capture)
         mesh = read_mesh(Path(args.capture) / args.mesh)
     else:
-        from pgc.geometry.testscene import body_mesh, make_capture
+        from pgc.testing.capture_scenes import body_mesh, make_capture
 
         capture, mesh = make_capture(body_mesh(0.02), views=32, size=256)
     records = []

@@ -51,7 +51,7 @@ def ours(world, camera, threads: int):
     """(forward, forward+backward, colour) callables of the fused torch path."""
     import torch
 
-    from pgc_torch.splat.binding import quat_to_rotmat
+    from pgc.splats.quaternion import quat_to_rotmat
     from pgc_torch.splat.rasterizer import rasterize
 
     rot = quat_to_rotmat(torch.tensor(np.asarray(world.quats), dtype=torch.float64)).float()

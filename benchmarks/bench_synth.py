@@ -33,7 +33,8 @@ def noise_study(resolution: int, fabric: str, spps: list[int], samplers: list[st
     from pgc.synth import fabrics, garments, rig
     from pgc.synth.body import make_body
     from pgc.config import load
-    from pgc.synth.render import SceneGeometry, scene_renderer
+    from pgc.roles.scene_renderer import SceneGeometry
+    from pgc.synth.render import scene_renderer
 
     body = make_body(edge_length=0.03)
     cloth = garments.make_garment(body, "tshirt", resolution=0.03)

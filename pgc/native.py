@@ -1,6 +1,6 @@
 """Compiled C++ kernels: build a single source file into a cached shared library and load it through ctypes.
 
-Backends with compiled paths (the torch splat kernel, the native XPBD) share this one build rule: the system
+Backends with compiled paths (the fused splat kernel, the native XPBD) share this one build rule: the system
 C++ compiler (``$CXX``, else ``g++`` / ``c++``) compiles the source with the given flags into
 ``$PGC_CACHE_DIR/kernels`` (default ``~/.cache/pgc/kernels``), named by a hash of the source and flags, written
 atomically (temp file + rename) so concurrent processes never load a half-written library. Plain C ABI: no

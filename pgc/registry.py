@@ -51,6 +51,7 @@ ROLES: dict[str, str] = {
     "metric": "pgc.roles.metric:Metric",
     "scene_renderer": "pgc.roles.scene_renderer:SceneRenderer",
     "calibrator": "pgc.roles.calibrator:Calibrator",
+    "body_model": "pgc.roles.body_model:BodyModel",
 }
 """Role name -> its abstract interface (lazy reference)."""
 

@@ -22,6 +22,13 @@ from pgc.errors import PGCDataError
 
 BACKGROUND_LABEL = 0
 """Segmentation id of pixels that see no person."""
+BODY_LABEL = 1
+"""Segmentation id of the body (skin, and whatever is neither garment nor background)."""
+GARMENT_LABEL = 2
+"""Segmentation id of the garment in the default labels (:attr:`Capture.labels`; a capture may name more
+garment ids) and in synthetic scenes."""
+DEFAULT_LABELS = {BACKGROUND_LABEL: "background", BODY_LABEL: "body", GARMENT_LABEL: "garment"}
+"""Segmentation id -> name of a capture that names none."""
 
 
 def _check_finite(name: str, array: np.ndarray, where: str) -> None:
@@ -130,6 +137,21 @@ class Camera:
                        height=max(1, round(self.height * factor)))
 
 
+def look_at_pose(eye: np.ndarray, target: np.ndarray, up: tuple[float, float, float] = (0.0, 1.0, 0.0)
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """OpenCV world-to-camera (R, t) of a camera at ``eye`` looking at ``target`` (metres) with world ``up`` up
+    (world +Z stands in for ``up`` when the camera looks along it)."""
+    z = np.asarray(target, float) - np.asarray(eye, float)
+    z /= np.linalg.norm(z)
+    x = np.cross(z, np.asarray(up, float))
+    if np.linalg.norm(x) < 1e-8:
+        x = np.cross(z, [0.0, 0.0, 1.0])
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)  # image down
+    R = np.stack([x, y, z])
+    return R, -R @ np.asarray(eye, float)
+
+
 @dataclass
 class View:
     """One calibrated image of the capture."""
@@ -188,7 +210,7 @@ class Capture:
     """A multi-view capture of one static frame."""
 
     views: list[View]
-    labels: dict[int, str] = field(default_factory=lambda: {0: "background", 1: "body", 2: "garment"})
+    labels: dict[int, str] = field(default_factory=lambda: dict(DEFAULT_LABELS))
     """Segmentation id -> name. Ids whose name is neither 'background' nor 'body' are garments."""
     light: Light | None = None
     """Known lighting, when the capture provides it (synthetic ground truth)."""

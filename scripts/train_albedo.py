@@ -26,14 +26,15 @@ DEFAULT_OUT = ROOT / "plugins" / "pgc_onnx" / "models" / "albedo_unet.onnx"
 
 
 DATA_VERSION = 2
-"""Bumped when pgc.albedo.dataset changes what it renders (the cache key)."""
+"""Bumped when pgc.synth.albedo_data changes what it renders (the cache key)."""
 
 
 def cached_data(kind: str, scenes: int, views: int, resolution: int, seed: int, spp: int, cfg, reporter):
     """The training data of these settings rendered by ``cfg``'s scene renderer (cached under .cache/, keyed by the
     settings and the renderer's implementation, options and version)."""
-    from pgc.albedo.dataset import AlbedoData, make_albedo_data
+    from pgc.albedo.dataset import AlbedoData
     from pgc.pipeline.cache import content_key
+    from pgc.synth.albedo_data import make_albedo_data
     from pgc.synth.render import scene_renderer
 
     renderer_key = content_key("albedo-data-renderer", cfg.role_key("scene_renderer"))[:12]

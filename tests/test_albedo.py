@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 
-from pgc.albedo.dataset import random_palette, scale_invariant_error
+from pgc.albedo.dataset import scale_invariant_error
 from pgc.albedo.shading_ratio import ShadingRatioEstimator
 from pgc.errors import PGCDataError
+from pgc.synth.albedo_data import random_palette
 
 torch = pytest.importorskip("torch", reason="exporting test models needs torch (pgc[torch])")
 pytest.importorskip("onnxruntime", reason="the onnx estimator needs onnxruntime (pgc[onnx])")
@@ -107,7 +108,7 @@ def test_random_palette_is_deterministic_and_in_range():
 
 
 def test_random_fabric_and_light_are_deterministic_and_varied():
-    from pgc.albedo.dataset import PATTERNS, random_fabric, random_light
+    from pgc.synth.albedo_data import PATTERNS, random_fabric, random_light
 
     fabrics = [random_fabric(np.random.default_rng([9, s])) for s in range(40)]
     assert fabrics[3] == random_fabric(np.random.default_rng([9, 3]))

@@ -36,7 +36,7 @@ def test_shipped_model_matches_its_record_and_beats_the_raw_image_on_a_held_out_
     import hashlib
 
     pytest.importorskip("onnxruntime", reason="the onnx estimator needs onnxruntime (pgc[onnx])")
-    from pgc.albedo.dataset import make_albedo_data
+    from pgc.synth.albedo_data import make_albedo_data
     from pgc_onnx.albedo import OnnxAlbedoEstimator
     from pgc_torch.albedo.train import evaluate
 

@@ -8,15 +8,15 @@ import math
 import numpy as np
 import pytest
 
+from pgc.arrays import array_ops
 from pgc.brdfs.maths import (EVALUATORS, ltc_coefficients, ltc_density, pgc_sheen_terms, sheen_albedo,
                              sheen_frame)
 from pgc.brdfs.parameters import PARAMETERS
 from pgc.brdfs.quadrature import directional_albedo
-from pgc.brdfs.xp import namespace
 from pgc.errors import PGCConfigError, PGCDataError
 from pgc.registry import default_registry
 
-NP = namespace("numpy")
+NP = array_ops("numpy")
 WHITE = np.ones(3)
 MODELS = ("lambertian", "disney", "pgc-sheen")
 RANDOM_PARAMS = {
@@ -139,8 +139,8 @@ def test_numpy_torch_jax_agree(model: str) -> None:
         base = rng.random((500, 3))
         params = RANDOM_PARAMS[model](rng)
         ref = EVALUATORS[model](NP, L, V, base, params)
-        t = EVALUATORS[model](namespace("torch"), torch.tensor(L), torch.tensor(V), torch.tensor(base), params)
-        j = EVALUATORS[model](namespace("jax"), jnp.asarray(L, jnp.float32), jnp.asarray(V, jnp.float32),
+        t = EVALUATORS[model](array_ops("torch"), torch.tensor(L), torch.tensor(V), torch.tensor(base), params)
+        j = EVALUATORS[model](array_ops("jax"), jnp.asarray(L, jnp.float32), jnp.asarray(V, jnp.float32),
                               jnp.asarray(base, jnp.float32), params)
         np.testing.assert_allclose(t.numpy(), ref, rtol=1e-12, atol=1e-14)
         np.testing.assert_allclose(np.asarray(j), ref, rtol=1e-5, atol=1e-5)
@@ -152,7 +152,7 @@ def test_torch_gradients_match_finite_differences() -> None:
     L = torch.tensor(_hemisphere(rng, 8))
     V = torch.tensor(_hemisphere(rng, 8))
     base = torch.tensor(rng.random((8, 3)))
-    ops = namespace("torch")
+    ops = array_ops("torch")
 
     def f(rough, color, sr, b):
         return EVALUATORS["pgc-sheen"](ops, L, V, b, {"roughness": rough, "sheen_color": color, "sheen_roughness": sr})
@@ -192,7 +192,7 @@ def test_hard_cases_are_finite(model: str) -> None:
             L = torch.tensor(HARD_L, requires_grad=True)
             V = torch.tensor(HARD_V, requires_grad=True)
             b = torch.tensor(base, requires_grad=True)
-            EVALUATORS[model](namespace("torch"), L, V, b, tp).sum().backward()
+            EVALUATORS[model](array_ops("torch"), L, V, b, tp).sum().backward()
             for g in [L.grad, V.grad, b.grad] + [t.grad for t in tp.values()]:
                 assert g is None or torch.all(torch.isfinite(g))
 

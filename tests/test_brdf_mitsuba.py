@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pgc.arrays import array_ops
 from pgc.brdfs.maths import EVALUATORS
-from pgc.brdfs.xp import namespace
 from pgc.errors import PGCDataError
 from pgc.types import Material
 
@@ -49,7 +49,7 @@ def test_mitsuba_eval_matches_shared_maths(model: str, params: dict) -> None:
     L, V = _hemisphere(rng, 2000), _hemisphere(rng, 2000)
     base = [0.3, 0.5, 0.7]
     bsdf = mi.load_dict(material_to_bsdf(Material(model, dict(params, base_color=base))))
-    ref = EVALUATORS[model](namespace("numpy"), L, V, np.array(base), params)
+    ref = EVALUATORS[model](array_ops("numpy"), L, V, np.array(base), params)
     got = _eval(bsdf, V, L)
     np.testing.assert_allclose(got, ref, rtol=1e-5, atol=1e-5)
 
@@ -163,7 +163,7 @@ def test_gradient_matches_finite_difference() -> None:
     sums = []
     for y in (0.45 + h, 0.45 - h):
         m = Material("pgc-sheen", dict(mat.params, sheen_roughness=y))
-        sums.append(EVALUATORS["pgc-sheen"](namespace("numpy"), L, V, np.array([0.3, 0.5, 0.7]), m.params).sum())
+        sums.append(EVALUATORS["pgc-sheen"](array_ops("numpy"), L, V, np.array([0.3, 0.5, 0.7]), m.params).sum())
     fd = (sums[0] - sums[1]) / (2 * h)
     assert grad == pytest.approx(fd, rel=1e-3)
 

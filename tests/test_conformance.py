@@ -36,7 +36,7 @@ def required_options(tmp_path_factory) -> dict:
 
 @pytest.fixture(scope="module")
 def built(required_options):
-    """Implementations are built once per module (some compile kernels on first use)."""
+    """Implementations are built once per module (some compile native libraries on first use)."""
     cache: dict = {}
 
     def get(impl):

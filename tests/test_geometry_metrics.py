@@ -102,7 +102,7 @@ def test_chamfer_of_a_mesh_with_itself_is_zero():
 
 
 def test_visible_faces_counts_cameras():
-    from pgc.geometry.testscene import look_at
+    from pgc.testing.capture_scenes import look_at
 
     # two quads at z = 2: the left one in front of both cameras, the right one only in front of camera b
     v = np.array([[-0.5, -0.5, 2], [0.5, -0.5, 2], [0.5, 0.5, 2], [-0.5, 0.5, 2],

@@ -6,7 +6,7 @@ import numpy as np
 
 from pgc.geometry.raster import rasterize
 from pgc.geometry.surface_nets import surface_nets
-from pgc.geometry.testscene import look_at
+from pgc.testing.capture_scenes import look_at
 from pgc.types import Mesh
 
 

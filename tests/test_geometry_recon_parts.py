@@ -13,7 +13,7 @@ from pgc.geometry.hull import _axis_centre, check_views, pixel_footprint, visual
 from pgc.geometry.labels import vote_face_labels
 from pgc.geometry.raster import rasterize
 from pgc.geometry.stereo import StereoSettings, consistency_filter, sweep_depth
-from pgc.geometry.testscene import make_capture
+from pgc.testing.capture_scenes import make_capture
 from pgc.types import Mesh, View
 
 

@@ -578,11 +578,11 @@ DEEP = "[" * 100_000 + "]" * 100_000
 
 def test_json_and_toml_nested_too_deeply_are_refused_by_every_reader(world, tmp_path, capsys):
     from pgc.bench.records import read_csv
-    from pgc.commands._common import read_json_file
+    from pgc.io.limits import read_json
 
     (tmp_path / "deep.json").write_text(DEEP)
     with pytest.raises(PGCDataError, match=r"deep\.json: lists or objects nested too deeply to parse .*; rerun it"):
-        read_json_file(tmp_path / "deep.json", "bench.json", "rerun it")
+        read_json(tmp_path / "deep.json", "bench.json", fix="rerun it")
     (tmp_path / "sweep.toml").write_text("a = " + DEEP + "\n")
     one_error(["sweep", tmp_path / "sweep.toml", "--out", tmp_path / "out"], ["sweep.toml", "nested"], capsys,
               tmp_path)

@@ -7,7 +7,9 @@ Layers (docs/architecture.md): the core (everything in ``pgc/`` except the pipel
 - nothing in ``pgc/`` imports a ``pgc_*`` package (implementations are reached through the registry);
 - a backend or plugin (``backends/pgc_*``, ``plugins/pgc_*``) imports no upper layer and no other
   ``pgc_*`` package (its own is fine);
-- the core imports no upper layer (``pgc.testing`` is a kit for tests and may use anything of ``pgc``).
+- the core imports no upper layer (``pgc.testing`` is a kit for tests and may use anything of ``pgc``);
+- the synthetic-data generator (``pgc.synth``) is a client of the core: no core module, backend or plugin
+  imports it (what a scene renderer receives lives with its role, ``pgc.roles.scene_renderer``).
 Cycles: the graph of imports between the modules of ``pgc``, the backends and the plugins (module and
 function level; imports under ``if TYPE_CHECKING:`` do not run and are left out) has no cycle.
 """
@@ -21,6 +23,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 UPPER = ("pgc.pipeline", "pgc.commands", "pgc.cli", "pgc.bench", "pgc.sweep")
 """The pipeline and command layers."""
+GENERATOR = ("pgc.synth",)
+"""The synthetic-data generator: it uses the core; only the upper layers and the testing kit use it."""
 NOT_CORE = UPPER + ("pgc.testing",)
 
 
@@ -101,8 +105,10 @@ def violations(root: Path) -> list[str]:
                 found.append(f"{where} (the core package reaches implementations through the registry)")
             elif _within(imp.target, UPPER) and not _within(imp.module, NOT_CORE):
                 found.append(f"{where} (the core imports no pipeline or command module)")
+            elif _within(imp.target, GENERATOR) and not _within(imp.module, NOT_CORE + GENERATOR):
+                found.append(f"{where} (the core never imports the generator)")
         elif top.startswith("pgc_"):
-            if _within(imp.target, UPPER):
+            if _within(imp.target, UPPER + GENERATOR):
                 found.append(f"{where} (a backend or plugin imports only the core)")
             elif target_top.startswith("pgc_") and target_top != top:
                 found.append(f"{where} (backends and plugins never import each other)")
@@ -212,6 +218,26 @@ def test_the_checker_catches_planted_violations_and_cycles(tmp_path):
     assert any("pgc_torch.fit imports pgc.commands" in v for v in found)
     assert any("pgc_colmap.calibrate imports pgc_torch.fit" in v for v in found)
     assert cycles(tmp_path) == [["pgc_torch.fit", "pgc_torch.renderer", "pgc_torch.fit"]]  # not good<->other
+
+
+def test_the_checker_keeps_the_generator_out_of_the_core_and_backends(tmp_path):
+    _write(tmp_path, "pgc/__init__.py", "")
+    _write(tmp_path, "pgc/synth/__init__.py", "")
+    _write(tmp_path, "pgc/synth/render.py", "from pgc.roles import scene_renderer\n")
+    _write(tmp_path, "pgc/synth/generate.py", "from pgc.synth import render\n")  # inside the generator: fine
+    _write(tmp_path, "pgc/pipeline/__init__.py", "from pgc.synth import render\n")  # an upper layer: fine
+    _write(tmp_path, "pgc/testing/__init__.py", "from pgc.synth import render\n")  # the testing kit: fine
+    _write(tmp_path, "pgc/roles/__init__.py", "")
+    _write(tmp_path, "pgc/roles/scene_renderer.py", "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n"
+                                                    "    from pgc.synth.render import x\n")
+    _write(tmp_path, "pgc/albedo/dataset.py", "def f():\n    from pgc.synth import generate\n")
+    _write(tmp_path, "backends/pgc_mitsuba/__init__.py", "")
+    _write(tmp_path, "backends/pgc_mitsuba/synth_scene.py", "from pgc.synth.render import SceneGeometry\n")
+    found = violations(tmp_path)
+    assert len(found) == 3, found
+    assert any("pgc.roles.scene_renderer imports pgc.synth.render" in v and "generator" in v for v in found)
+    assert any("pgc.albedo.dataset imports pgc.synth.generate" in v for v in found)  # function level
+    assert any("pgc_mitsuba.synth_scene imports pgc.synth.render" in v for v in found)
 
 
 def test_the_tree_is_parsed():

@@ -8,7 +8,7 @@ import pytest
 
 from pgc.brdfs.fitdata import masked_mse, prepare_views
 from pgc.brdfs.parameters import PARAMETERS
-from pgc.brdfs.scenes import checker_texture, folded_sheet, ring_cameras
+from pgc.testing.pbr_scenes import checker_texture, folded_sheet, ring_cameras
 from pgc.brdfs.select import fit_and_select, holdout_split
 from pgc.errors import PGCDataError
 from pgc.roles.pbr_renderer import MaterialFitSettings

@@ -105,6 +105,31 @@ def test_ssim_matches_scikit_image():
         assert metric("ssim")(a, b) == pytest.approx(ref, abs=1e-6)
 
 
+@pytest.mark.parametrize("padding", ["reflect", "zeros"])
+def test_ssim_map_and_srgb_are_one_code_for_numpy_torch_and_jax(padding):
+    """The metric's SSIM map and the fit's loss are one function: torch and JAX (float64) give numpy's values,
+    and so do the sRGB transfer functions."""
+    torch = pytest.importorskip("torch")
+    jnp = pytest.importorskip("jax.numpy")
+    import jax
+
+    from pgc.metrics.ssim import mean_ssim, ssim_map
+
+    rng = np.random.default_rng(8)
+    x = rng.uniform(size=(19, 23, 3))
+    y = np.clip(x + 0.1 * rng.normal(size=x.shape), 0.0, 1.0)
+    ref = ssim_map(x, y, padding)
+    np.testing.assert_allclose(ssim_map(torch.tensor(x), torch.tensor(y), padding).numpy(), ref, atol=1e-12)
+    with jax.enable_x64(True):
+        np.testing.assert_allclose(np.asarray(ssim_map(jnp.asarray(x), jnp.asarray(y), padding)), ref, atol=1e-12)
+        np.testing.assert_allclose(float(mean_ssim(jnp.asarray(x), jnp.asarray(y))),
+                                   ssim_map(x, y, "zeros").mean(), atol=1e-12)
+        v = np.linspace(-0.1, 1.1, 101)
+        for f in (linear_to_srgb, srgb_to_linear):
+            np.testing.assert_allclose(f(torch.tensor(v)).numpy(), f(v), atol=1e-7)
+            np.testing.assert_allclose(np.asarray(f(jnp.asarray(v))), f(v), atol=1e-7)
+
+
 def test_ssim_mask_of_ones_equals_unmasked_and_mask_restricts():
     a = textured()
     b = a.copy()

@@ -7,7 +7,7 @@ import pytest
 
 from pgc.errors import PGCDataError
 from pgc.io.motion import load_motion
-from pgc.sim.scenes import uv_sphere
+from pgc.testing.cloth_scenes import uv_sphere
 
 
 def _frames(n: int = 3) -> tuple[np.ndarray, np.ndarray]:

@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pgc.brdfs.scenes import checker_texture, folded_sheet, ring_cameras, uv_sphere
+from pgc.testing.pbr_scenes import checker_texture, folded_sheet, ring_cameras, uv_sphere
 from pgc.errors import PGCDataError
 from pgc.registry import default_registry
 from pgc.texture.atlas import texel_geometry

@@ -3,7 +3,7 @@
 import numpy as np
 
 from pgc.pipeline.transfer import embed, place
-from pgc.sim.scenes import grid_cloth
+from pgc.testing.cloth_scenes import grid_cloth
 
 
 def test_embedding_reproduces_rest_points_and_follows_rigid_motion():

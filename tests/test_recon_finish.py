@@ -11,7 +11,7 @@ from pgc.geometry import metrics
 from pgc.geometry.garment import garment_selection
 from pgc.geometry.hull import visual_hull
 from pgc.geometry.options import FinishOptions
-from pgc.geometry.testscene import body_mesh, make_capture
+from pgc.testing.capture_scenes import body_mesh, make_capture
 from pgc.types import Mesh
 
 for _module in ("pymeshlab", "xatlas"):

@@ -8,7 +8,7 @@ import pytest
 from pgc.errors import PGCConfigError, PGCDataError
 from pgc.geometry import metrics
 from pgc.geometry.hull import pixel_footprint
-from pgc.geometry.testscene import body_mesh, make_capture
+from pgc.testing.capture_scenes import body_mesh, make_capture
 from pgc.io.mesh import write_mesh
 from pgc.registry import Registry
 from pgc.types import Mesh

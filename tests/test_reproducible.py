@@ -101,7 +101,7 @@ def test_material_fit_is_identical_whatever_the_thread_count(monkeypatch):
     pytest.importorskip("mitsuba")
     from test_material_fit import FAST, synthetic_capture
 
-    from pgc.brdfs.scenes import checker_texture, folded_sheet
+    from pgc.testing.pbr_scenes import checker_texture, folded_sheet
     from pgc.registry import default_registry
     from pgc.types import Material
     from pgc_mitsuba.runtime import mitsuba

@@ -81,7 +81,7 @@ def test_degenerate_triangles_give_finite_documented_frames(name):
 
 @pytest.mark.parametrize("name", sorted(DEGENERATE) + ["random"])
 def test_torch_binding_matches_numpy_and_has_finite_gradients(name):
-    from pgc_torch.splat.binding import bind as tbind
+    from pgc.splats.binding import bind_arrays as tbind  # the shared maths on torch tensors
 
     rng = np.random.default_rng(2)
     v = rng.normal(size=(3, 3)) if name == "random" else np.array(DEGENERATE[name], float)
@@ -102,7 +102,7 @@ def test_torch_binding_matches_numpy_and_has_finite_gradients(name):
 
 
 def test_torch_frames_gradcheck_float64():
-    from pgc_torch.splat.binding import triangle_frames as tframes
+    from pgc.splats.binding import triangle_frames as tframes
 
     rng = np.random.default_rng(3)
     v = torch.tensor(rng.normal(size=(5, 3)), requires_grad=True)

@@ -1,4 +1,4 @@
-"""The torch splat fit on a small scene made here (the test body of pgc.geometry.testscene): it learns,
+"""The torch splat fit on a small scene made here (the test body of pgc.testing.capture_scenes): it learns,
 keeps only the garment's Gaussians, chooses SH degree and count from held-out views, resumes from a checkpoint."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import pytest
 
 from pgc.errors import PGCDataError
 from pgc.events import Reporter
-from pgc.geometry.testscene import body_mesh, make_capture
+from pgc.testing.capture_scenes import body_mesh, make_capture
 from pgc.roles.splat_renderer import FitSplatsSettings
 
 torch = pytest.importorskip("torch")

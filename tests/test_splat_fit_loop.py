@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from pgc.geometry.testscene import body_mesh, make_capture
+from pgc.testing.capture_scenes import body_mesh, make_capture
 from pgc.roles.splat_renderer import FitSplatsSettings
 from pgc.splats.fit import PARAMETERS, FitBackend, FitView, adam_update, converged
 from pgc.splats.fitplan import focus_on_garment, heldout_split, initial_gaussians

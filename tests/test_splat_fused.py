@@ -1,5 +1,5 @@
 """The fused splat kernel (backend "fused"): images against the float64 reference, gradients of all five inputs
-(rotation matrices included) against float64 finite differences, agreement with the "cpp" and "torch" paths,
+(rotation matrices included) against float64 finite differences, agreement with the pure-torch path,
 hard cases, and determinism over thread counts."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from pgc.types import Camera, WorldGaussians
 
 torch = pytest.importorskip("torch")
 
-from pgc_torch.splat.binding import quat_to_rotmat  # noqa: E402
+from pgc.splats.quaternion import quat_to_rotmat  # noqa: E402
 from pgc_torch.splat.rasterizer import rasterize  # noqa: E402
 from pgc_torch.splat.renderer import TorchSplatRenderer  # noqa: E402
 
@@ -149,20 +149,20 @@ def test_float64_gradcheck_of_all_five_inputs():
 
 @pytest.mark.agreement
 @pytest.mark.parametrize("seed", [0, 1])
-def test_fused_cpp_and_torch_agree(seed):
-    """Images (float32) and gradients of every input (float32 and float64) of the three paths."""
+def test_fused_and_torch_agree(seed):
+    """Images (float32) and gradients of every input (float32 and float64) of the two paths."""
     world, cam = _scene(120, seed), _camera()
     bg = torch.tensor(np.random.default_rng(seed).uniform(size=(24, 32, 3)))
     weights = [torch.tensor(x) for x in _weights(24, 32, 20 + seed)]
     results = {}
-    for backend in ("fused", "cpp", "torch"):
+    for backend in ("fused", "torch"):
         for dtype in (torch.float32, torch.float64):
             params = _params(world, dtype)
             images = rasterize(*params, cam, bg.to(dtype), backend=backend, threads=2)
             value = sum((x * w.to(dtype)).sum() for x, w in zip(images, weights))
             results[backend, dtype] = ([x.detach().double() for x in images],
                                        [g.double() for g in torch.autograd.grad(value, params)])
-    oracle_images, oracle_grads = results["cpp", torch.float64]
+    oracle_images, oracle_grads = results["torch", torch.float64]
     for key, (images, grads) in results.items():
         tol_img = 1e-5 if key[1] == torch.float32 else 1e-12
         tol_grad = 1e-3 if key[1] == torch.float32 else 1e-9
@@ -244,7 +244,7 @@ def test_opacity_aware_binning_drops_tiles_but_no_pixel():
     ref = render_reference(world, cam)
     weights = [torch.tensor(x, dtype=torch.float32) for x in _weights(48, 64, 22)]
     results = {}
-    for backend in ("fused", "cpp"):
+    for backend in ("fused", "torch"):
         params = _params(world, torch.float32)
         images = rasterize(*params, cam, None, backend=backend, tile=tile, threads=2)
         value = sum((x * w).sum() for x, w in zip(images, weights))
@@ -254,7 +254,7 @@ def test_opacity_aware_binning_drops_tiles_but_no_pixel():
     np.testing.assert_allclose(alpha, ref.alpha, atol=1e-5)
     # both float32: the cpp path rounds the screen means to float32 (~2e-6 px here), which these sub-pixel-thin
     # discs (alpha slope up to ~1/DILATION per px) turn into up to ~1e-5 of alpha; each is within 1e-5 of float64
-    for x, y in zip(results["fused"][0], results["cpp"][0]):
+    for x, y in zip(results["fused"][0], results["torch"][0]):
         np.testing.assert_allclose(x, y, atol=2e-5 * max(1.0, float(np.abs(y).max())))
-    for name, g, r in zip(FIELDS, results["fused"][1], results["cpp"][1]):
+    for name, g, r in zip(FIELDS, results["fused"][1], results["torch"][1]):
         assert float((g - r).norm() / r.norm()) < 1e-3, name

@@ -14,9 +14,9 @@ from pgc.types import GaussianSet, WorldGaussians
 jax = pytest.importorskip("jax")
 import jax.numpy as jnp  # noqa: E402
 
-from pgc_jax.splat.binding import bind, triangle_frames  # noqa: E402
+from pgc.splats.binding import bind_arrays as bind, triangle_frames  # noqa: E402
 from pgc_jax.splat.fused import camera_bits, fused_render  # noqa: E402
-from pgc_jax.splat.project import quat_to_rotmat  # noqa: E402
+from pgc.splats.quaternion import quat_to_rotmat  # noqa: E402
 from pgc_jax.splat.render import camera_arrays, make_bins, render_bound  # noqa: E402
 from pgc_jax.splat.renderer import JaxSplatRenderer  # noqa: E402
 
@@ -211,7 +211,7 @@ def test_float32_gradients_match_float64_to_1e_3(grads32, grads64):
 def test_images_and_gradients_match_torch(grads32, compositor):
     """The same loss through the torch backend (binding + rasteriser) gives the same value and gradients."""
     torch = pytest.importorskip("torch")
-    from pgc_torch.splat.binding import bind as torch_bind
+    from pgc.splats.binding import bind_arrays as torch_bind
     from pgc_torch.splat.rasterizer import rasterize
 
     g_jax, data = grads32
@@ -220,7 +220,7 @@ def test_images_and_gradients_match_torch(grads32, compositor):
     m, r, s, o = torch_bind(torch.as_tensor(data["parent"]), t["means"], t["quats"], t["log_scales"],
                             t["opacity_logits"], t["vertices"], torch.as_tensor(data["faces"]))
     c, a, d = rasterize(m, r, s, o, t["sh"], GRAD_CAM,
-                        torch.as_tensor(data["bg"], dtype=torch.float32), 3, 0.01, 16, "cpp", 1)
+                        torch.as_tensor(data["bg"], dtype=torch.float32), 3, 0.01, 16, "torch", 1)
     loss = (torch.cat([c, a[..., None], d[..., None]], -1) * torch.as_tensor(data["weights"], dtype=torch.float32))
     loss.sum().backward()
     world = np_bind(GaussianSet(data["parent"], data["means"], data["quats"], data["log_scales"],

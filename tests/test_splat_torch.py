@@ -7,24 +7,23 @@ import pytest
 
 from conftest import overlapping_gaussians as _scene, tilted_camera as _camera
 from pgc.splats import fused as fused_kernel
-from pgc.splats.binding import bind as np_bind
+from pgc.splats.binding import bind as np_bind, bind_arrays
+from pgc.splats.quaternion import quat_to_rotmat
 from pgc.splats.reference import render_reference
 from pgc.types import Camera, GaussianSet, WorldGaussians
 
 torch = pytest.importorskip("torch")
 
-from pgc_torch.splat import kernel  # noqa: E402
-from pgc_torch.splat.binding import bind, quat_to_rotmat  # noqa: E402
 from pgc_torch.splat.rasterizer import rasterize  # noqa: E402
 from pgc_torch.splat.renderer import TorchSplatRenderer  # noqa: E402
 
-COMPOSITORS = ["cpp", "torch"]
+COMPOSITORS = ["fused", "torch"]
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 @pytest.fixture(scope="module", autouse=True)
 def _kernel_builds():
-    assert kernel.available(), "the C++ compositing kernel must build here (g++ with OpenMP)"
+    assert fused_kernel.available(), "the fused splat kernel must build here (g++ with OpenMP)"
 
 
 def _assert_matches_reference(world: WorldGaussians, cam: Camera, background, compositor: str,
@@ -48,7 +47,7 @@ def test_images_match_reference_on_overlapping_scenes(compositor, seed):
 
 @pytest.mark.parametrize("degree", [0, 1, 2])
 def test_lower_sh_degrees_match_reference(degree):
-    _assert_matches_reference(_scene(40, 7), _camera(), np.array([0.2, 0.3, 0.1]), "cpp", sh_degree=degree)
+    _assert_matches_reference(_scene(40, 7), _camera(), np.array([0.2, 0.3, 0.1]), "torch", sh_degree=degree)
 
 
 def _hard_scene() -> WorldGaussians:
@@ -105,14 +104,14 @@ def test_float32_gradients_match_float64_and_both_compositors(seed):
     bg = rng.uniform(size=(24, 32, 3))
     weights = [torch.tensor(rng.normal(size=s)) for s in ((24, 32, 3), (24, 32), (24, 32))]
     grads = {}
-    for dtype, comp in [(torch.float64, "cpp"), (torch.float32, "cpp"), (torch.float32, "torch")]:
+    for dtype, comp in [(torch.float64, "torch"), (torch.float32, "fused"), (torch.float32, "torch")]:
         params = _torch_world(world, dtype)
         w = [x.to(dtype) for x in weights]
         value = _weighted_render(params, cam, torch.tensor(bg, dtype=dtype), w, comp)
         grads[dtype, comp] = torch.autograd.grad(value, params)
     names = ("means", "quats", "scales", "opacities", "sh")
-    for key in [(torch.float32, "cpp"), (torch.float32, "torch")]:
-        for name, g32, g64 in zip(names, grads[key], grads[torch.float64, "cpp"]):
+    for key in [(torch.float32, "fused"), (torch.float32, "torch")]:
+        for name, g32, g64 in zip(names, grads[key], grads[torch.float64, "torch"]):
             err = (g32.double() - g64).norm() / g64.norm()
             assert err < 1e-3, (key, name, float(err))
 
@@ -128,8 +127,8 @@ def _small_mesh_scene(seed: int, degenerate: bool):
     return v, np.array(faces), g
 
 
-@pytest.mark.parametrize(("compositor", "fast"), [pytest.param("cpp", False, marks=pytest.mark.slow),
-                                                   ("cpp", True), ("torch", True)])
+@pytest.mark.parametrize(("compositor", "fast"), [pytest.param("torch", False, marks=pytest.mark.slow),
+                                                   ("fused", True), ("torch", True)])
 def test_finite_difference_gradients_of_every_parameter_and_vertices(compositor, fast):
     """float64 gradcheck through the binding: local means, quaternions, log-scales, opacity logits, SH and the
     vertex positions. The image has measure-zero discontinuities (footprint box, 1/255 cut), so the step is
@@ -145,7 +144,7 @@ def test_finite_difference_gradients_of_every_parameter_and_vertices(compositor,
               for x in (g.means, g.quats, g.log_scales, g.opacity_logits, g.sh, v)]
 
     def fn(means, quats, log_scales, logits, sh, verts):
-        m, rot, s, o = bind(parent, means, quats, log_scales, logits, verts, faces)
+        m, rot, s, o = bind_arrays(parent, means, quats, log_scales, logits, verts, faces)
         color, alpha, depth = rasterize(m, rot, s, o, sh, cam, bg, backend=compositor)
         return (color * weights[0]).sum() + (alpha * weights[1]).sum() + (depth * weights[2]).sum()
 
@@ -163,14 +162,14 @@ def test_gradients_are_finite_on_hard_cases_and_degenerate_triangles():
     for dtype in (torch.float32, torch.float64):
         inputs = [torch.tensor(np.asarray(x), dtype=dtype, requires_grad=True)
                   for x in (g.means, g.quats, g.log_scales, g.opacity_logits, g.sh, v)]
-        m, rot, s, o = bind(torch.as_tensor(g.parent), *inputs[:4], inputs[5], torch.as_tensor(f))
+        m, rot, s, o = bind_arrays(torch.as_tensor(g.parent), *inputs[:4], inputs[5], torch.as_tensor(f))
         color, alpha, depth = rasterize(m, rot, s, o, inputs[4], cam, None)
         assert all(torch.isfinite(x).all() for x in (color, alpha, depth))
         (color.sum() + alpha.sum() + depth.sum()).backward()
         for x in inputs:
             assert torch.isfinite(x.grad).all()
     world = np_bind(g, v, f)
-    _assert_matches_reference(world, cam, None, "cpp")
+    _assert_matches_reference(world, cam, None, "torch")
 
 
 def test_registered_and_built_through_the_registry():
@@ -183,11 +182,9 @@ def test_registered_and_built_through_the_registry():
 def test_kernel_build_failure_is_reported_and_auto_falls_back(tmp_path, monkeypatch):
     monkeypatch.setenv("PGC_CACHE_DIR", str(tmp_path))
     monkeypatch.setenv("CXX", str(tmp_path / "no-such-compiler"))
-    with pytest.raises(kernel.KernelUnavailable):
-        kernel.build()
+    with pytest.raises(fused_kernel.KernelUnavailable):
+        fused_kernel.build()
     monkeypatch.setattr(fused_kernel, "available", lambda: False)
-    assert TorchSplatRenderer({"compositor": "auto"}).compositor == "cpp"
-    monkeypatch.setattr(kernel, "available", lambda: False)
     assert TorchSplatRenderer({"compositor": "auto"}).compositor == "torch"
 
 
@@ -213,7 +210,7 @@ def test_float32_gradient_matches_reference_finite_differences():
     params = _torch_world(world, torch.float32)
     weights = [torch.tensor(wc, dtype=torch.float32), torch.tensor(wa, dtype=torch.float32),
                torch.zeros(18, 24)]
-    grads = torch.autograd.grad(_weighted_render(params, cam, None, weights, "cpp"), params)
+    grads = torch.autograd.grad(_weighted_render(params, cam, None, weights, "torch"), params)
     h = 1e-7
     for _ in range(3):
         direction = {f: rng.normal(size=np.shape(getattr(world, f))) for f in fields}
@@ -242,7 +239,7 @@ def _ssim_direct(x: np.ndarray, y: np.ndarray) -> float:
 
 
 def test_separable_ssim_equals_the_full_window():
-    from pgc_torch.splat.losses import ssim
+    from pgc.metrics.ssim import mean_ssim as ssim
 
     rng = np.random.default_rng(3)
     x = rng.uniform(size=(23, 17, 3))

@@ -21,7 +21,7 @@ def tiny(tmp_path_factory, default_scene_renderer):
     from pgc.synth.generate import generate
 
     out = tmp_path_factory.mktemp("synth") / "tiny"
-    generate(out, "tiny", garment="tshirt", fabric="cotton", seed=1, renderer=default_scene_renderer)
+    generate(out, "tiny", garment="tshirt", fabric="cotton-sheen", seed=1, renderer=default_scene_renderer)
     return out
 
 
@@ -159,7 +159,7 @@ def test_colour_is_the_person_over_the_empty_dome(capture_and_oracle):
 def test_depth_and_albedo_layers(capture_and_oracle):
     from scipy.ndimage import maximum_filter, minimum_filter
 
-    from pgc.synth.render import SKIN_ALBEDO
+    from pgc.roles.scene_renderer import SKIN_ALBEDO
 
     capture, _, oracle = capture_and_oracle
     for view, o in zip(capture.views, oracle):
@@ -175,9 +175,8 @@ def test_lambertian_patch_matches_the_analytic_value(default_scene_renderer):
     """A flat Lambertian patch (albedo rho) under a constant environment of radiance L, unoccluded over its
     upper hemisphere, has radiance rho L in every direction. Both the shared BSDF (material_to_bsdf,
     'lambertian' with a texture) and Mitsuba's own 'diffuse' (the body) must give it."""
-    from pgc.synth.render import SceneGeometry
-    from pgc.synth.rig import look_at
-    from pgc.types import Light
+    from pgc.roles.scene_renderer import SceneGeometry
+    from pgc.types import Light, look_at_pose
 
     rho = np.array([0.5, 0.3, 0.8])
     light = Light(radiance=np.array([1.0, 0.96, 0.9]))
@@ -192,7 +191,7 @@ def test_lambertian_patch_matches_the_analytic_value(default_scene_renderer):
     for target in ([0.0, 0, 0], [3.0, 0, 0]):
         for elevation in (80.0, 25.0):  # near normal and towards grazing
             e = np.deg2rad(elevation)
-            R, t = look_at(np.array(target) + [0, 2 * np.sin(e), 2 * np.cos(e)], np.array(target))
+            R, t = look_at_pose(np.array(target) + [0, 2 * np.sin(e), 2 * np.cos(e)], np.array(target))
             K = np.array([[200.0, 0, 16], [0, 200.0, 16], [0, 0, 1]])
             color, alpha = default_scene_renderer.render_color(scene, Camera(K, R, t, 32, 32), spp=64, seed=0)
             assert np.all(alpha == 1)

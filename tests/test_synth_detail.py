@@ -7,8 +7,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from pgc.geometry.embedded import DetailSurface, embedded_points
 from pgc.synth import detail as D
-from pgc.synth.embed import embedded_points
 from pgc.synth.skeleton import axis_angle_to_matrix
 from pgc.types import Camera, Mesh
 
@@ -48,7 +48,7 @@ def quad(size: float = 0.2) -> Mesh:
 @pytest.mark.parametrize("level", [1, 2, 5])
 def test_lattice_subdivision_is_a_watertight_refinement(level):
     m = quad()
-    s = D.DetailSurface(level, np.zeros(0), m.faces, m.uv, m.face_uv)
+    s = DetailSurface(level, np.zeros(0), m.faces, m.uv, m.face_uv)
     n = level
     # vertices: 4 corners, (n - 1) per edge on 5 edges, (n - 1)(n - 2) / 2 inside each face
     assert len(s.face) == 4 + 5 * (n - 1) + 2 * (n - 1) * (n - 2) // 2
@@ -150,7 +150,7 @@ def test_detail_appears_in_the_ground_truth_layers(body, tee, relief, default_sc
     relief height at the same place (flat-patch formula h (d . z_cam) / (-d . n)), and the segmentation
     counts the relief as garment."""
     from pgc.synth.generate import framing_sphere
-    from pgc.synth.render import SceneGeometry
+    from pgc.roles.scene_renderer import SceneGeometry
     from pgc.synth.rig import capture_light, dome_cameras
     from pgc.types import Material
 
@@ -167,8 +167,8 @@ def test_detail_appears_in_the_ground_truth_layers(body, tee, relief, default_sc
     seg_b, seg_d = layers["base"]["segmentation"], layers["detail"]["segmentation"]
     assert (seg_d == 2).sum() >= (seg_b == 2).sum() > 500
     # expected depth change: the relief's (piecewise linear) height where the undisplaced fine surface is hit
-    flat = D.DetailSurface(surface.level, np.zeros_like(surface.offset), tee.faces, tee.uv, tee.face_uv)
-    unit = D.DetailSurface(surface.level, np.ones_like(surface.offset), tee.faces, tee.uv, tee.face_uv)
+    flat = DetailSurface(surface.level, np.zeros_like(surface.offset), tee.faces, tee.uv, tee.face_uv)
+    unit = DetailSurface(surface.level, np.ones_like(surface.offset), tee.faces, tee.uv, tee.face_uv)
     flat_v = flat.vertices(tee.vertices)
     normals = unit.vertices(tee.vertices) - flat_v  # the unit offset direction of every fine vertex
     valid, depth, face, point = _pixel_hits(Mesh(flat_v, surface.faces), cam)
@@ -210,7 +210,7 @@ def capture(tmp_path_factory, default_scene_renderer):
     from pgc.synth.generate import generate, get_preset
 
     out = tmp_path_factory.mktemp("synth_detail") / "tiny"
-    generate(out, get_preset("tiny", views=2, resolution=48), fabric="rib-knit", detail="relief", fit="resting",
+    generate(out, get_preset("tiny", views=2, resolution=48), fabric="rib-knit-sheen", detail="relief", fit="resting",
              looseness=0.012, seed=2, renderer=default_scene_renderer)
     return out
 

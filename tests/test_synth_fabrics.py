@@ -46,7 +46,7 @@ def test_fabric_textures_are_valid(name):
 
 def test_fibres_ride_on_the_garment():
     m = quad(0.3)
-    fab = fabrics.FABRICS["fleece"]
+    fab = fabrics.FABRICS["fleece-sheen"]
     material, _ = fabrics.make_material(fab, m, 32, seed=0)
     fib = fabrics.make_fibres(fab, m, material, seed=0, scale=100.0)
     pts = fib.control_points(m.vertices, m.faces)
@@ -58,7 +58,7 @@ def test_fibres_ride_on_the_garment():
     R, t = axis_angle_to_matrix(np.array([0.4, -0.2, 1.0])), np.array([0.1, 2.0, -0.3])
     moved = fib.control_points(m.vertices @ R.T + t, m.faces)
     np.testing.assert_allclose(moved, pts @ R.T + t, atol=1e-12)  # they follow any rigid motion exactly
-    assert fabrics.make_fibres(fabrics.FABRICS["cotton"], m, material, seed=0) is None
+    assert fabrics.make_fibres(fabrics.FABRICS["cotton-sheen"], m, material, seed=0) is None
 
 
 def test_dome_cameras_look_at_the_subject():

@@ -75,3 +75,17 @@ def test_mesh_geometry_and_submesh():
     np.testing.assert_allclose(sub.vertices[sub.faces], cube.vertices[cube.faces[cube.face_labels == 2]])
     np.testing.assert_allclose(sub.uv[sub.face_uv], cube.uv[cube.face_uv[cube.face_labels == 2]])
     np.testing.assert_array_equal(cube.vertices[used], sub.vertices)
+
+
+@pytest.mark.parametrize("eye, target", [([3, 1, 2], [0, 0.5, 0]), ([0, 0, 0], [0, 0, 1]), ([0, 2, 0], [0, 0, 0]),
+                                         ([1, -3, 0.5], [1, 1, 0.5])])
+def test_look_at_pose_puts_the_target_on_the_axis_and_up_upward(eye, target):
+    from pgc.types import look_at_pose
+
+    R, t = look_at_pose(np.array(eye, float), np.array(target, float))
+    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+    assert np.linalg.det(R) == pytest.approx(1.0)
+    cam = R @ np.asarray(target, float) + t
+    np.testing.assert_allclose(cam[:2], 0.0, atol=1e-12)
+    assert cam[2] == pytest.approx(np.linalg.norm(np.subtract(target, eye)))
+    assert R[1] @ [0.0, 1.0, 0.0] <= 1e-12  # image y points down: world up is never downward in the image

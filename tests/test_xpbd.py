@@ -9,7 +9,7 @@ from pgc.sim.collision import signed_distance
 from pgc.sim.driver import FrameRunner, XPBDSimulator, step_settings
 from pgc.sim.model import STRETCH, ClothModel
 from pgc.sim.options import XPBDOptions
-from pgc.sim.scenes import grid_cloth, moving_motion, static_motion, uv_sphere
+from pgc.testing.cloth_scenes import grid_cloth, moving_motion, static_motion, uv_sphere
 from pgc.types import Mesh
 
 pytest.importorskip("scipy")

@@ -8,7 +8,7 @@ import pytest
 from pgc.registry import default_registry
 from pgc.sim.driver import FrameRunner, step_settings
 from pgc.sim.model import STRETCH, ClothModel
-from pgc.sim.scenes import grid_cloth, moving_motion, uv_sphere
+from pgc.testing.cloth_scenes import grid_cloth, moving_motion, uv_sphere
 from pgc.types import BodyMotion, Mesh
 
 pytest.importorskip("scipy")

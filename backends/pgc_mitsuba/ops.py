@@ -1,27 +1,27 @@
-"""The BRDF maths' array namespace on Dr.Jit arrays, so that :mod:`pgc.brdfs.maths` evaluates inside
-Mitsuba BSDFs with the same formulas as the numpy/torch/JAX evaluation."""
+"""The array operations (:class:`pgc.arrays.ArrayOps`) on Dr.Jit arrays, so that :mod:`pgc.brdfs.maths`
+evaluates inside Mitsuba BSDFs with the same formulas as the numpy/torch/JAX evaluation."""
 
 from __future__ import annotations
 
 from functools import lru_cache
 from typing import Any
 
-from pgc.brdfs.xp import LUMINANCE, BrdfOps
+from pgc.arrays import LUMINANCE, ArrayOps
 from pgc_mitsuba.runtime import mitsuba
 
 
-class DrJitBrdfOps(BrdfOps):
-    """The operations of :class:`pgc.brdfs.xp.BrdfOps` on Dr.Jit arrays (``Float`` scalar fields,
-    ``Vector3f`` directions, ``Color3f`` colours)."""
+class DrJitOps(ArrayOps):
+    """The operations of :class:`pgc.arrays.ArrayOps` that the BRDF maths uses, on Dr.Jit arrays (``Float``
+    scalar fields, ``Vector3f`` directions, ``Color3f`` colours)."""
 
     name = "drjit"
 
     def __init__(self, dr: Any, mi: Any) -> None:
         super().__init__(dr)
-        self.dr, self.mi = dr, mi
+        self.mi = mi
 
     def where(self, cond: Any, a: Any, b: Any) -> Any:
-        return self.dr.select(cond, a, b)
+        return self.xp.select(cond, a, b)
 
     def split(self, v: Any) -> tuple[Any, Any, Any]:
         return v.x, v.y, v.z
@@ -42,9 +42,9 @@ class DrJitBrdfOps(BrdfOps):
 
 
 @lru_cache(maxsize=None)
-def drjit_ops() -> DrJitBrdfOps:
+def drjit_ops() -> DrJitOps:
     """The Dr.Jit namespace (Mitsuba imported in PGC's variant first, see :mod:`pgc_mitsuba.runtime`)."""
     mi = mitsuba()
     import drjit
 
-    return DrJitBrdfOps(drjit, mi)
+    return DrJitOps(drjit, mi)

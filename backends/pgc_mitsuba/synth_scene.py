@@ -1,32 +1,31 @@
 """The ``scene_renderer`` role on Mitsuba 3 (LLVM variant, CPU): path-traced colour and exact ray-cast
-ground truth of a synthetic scene (:class:`pgc.synth.render.SceneGeometry`).
+ground truth of a synthetic scene (:class:`pgc.roles.scene_renderer.SceneGeometry`).
 
 Colour: the ``path`` integrator, box pixel filter (a pixel's value is the mean radiance over its square, so
 edges blend the person with the background by exact coverage), the named sampler seeded per call
 (Mitsuba's LLVM rendering is deterministic for a fixed seed). Ground truth: one ``ray_intersect`` of the
-rays of :func:`pgc.synth.render.subpixel_rays`, reduced by :func:`pgc.synth.render.layers_from_samples`.
+rays of :func:`pgc.roles.scene_renderer.subpixel_rays`, reduced by
+:func:`pgc.roles.scene_renderer.layers_from_samples`.
 
 The garment's BSDF is :func:`pgc_mitsuba.bsdfs.material_to_bsdf` (the shared BRDF evaluation), wrapped in
 Mitsuba's ``normalmap`` when the fabric has a weave, on the garment's near-field detail surface when there is
-one (:mod:`pgc.synth.detail`); the body is Lambertian (Mitsuba ``diffuse``); fibres are a ``linearcurve``
-shape with the garment's BRDF in the fibres' colour.
+one (:mod:`pgc.synth.detail`); the body is Lambertian (Mitsuba ``diffuse``); fibres are ``linearcurve``
+shapes (:mod:`pgc_mitsuba.fibres`): a fibre truth's layer shaded by Mitsuba's ``hair`` BSDF, a control's
+sparse fibres by the garment's BRDF in the fibres' colour.
 """
 
 from __future__ import annotations
 
-import os
-import tempfile
 from typing import Any
 
 import numpy as np
 
 from pgc.errors import PGCDataError
 from pgc.roles.scene_renderer import SceneRenderer
-from pgc.synth.fabrics import Fibres
-from pgc.synth.render import (LABEL_BODY, LABEL_GARMENT, SceneGeometry, empty_layers, layers_from_samples,
-                              subpixel_rays)
-from pgc.types import Camera, Light, Material
+from pgc.roles.scene_renderer import SceneGeometry, empty_layers, layers_from_samples, subpixel_rays
+from pgc.types import BODY_LABEL, GARMENT_LABEL, Camera, Light, Material
 from pgc_mitsuba.bsdfs import material_to_bsdf
+from pgc_mitsuba.fibres import FIBRE_ID, fibre_shapes
 from pgc_mitsuba.runtime import mesh_to_mitsuba, mitsuba
 from pgc_mitsuba.scene import emitter_dict
 from pgc_mitsuba.specs_scene import MitsubaSceneOptions
@@ -63,25 +62,6 @@ def garment_bsdf(material: Material, normal_map: np.ndarray | None) -> dict[str,
                                                "filter_type": "bilinear"}, "bsdf": bsdf}
 
 
-def fibre_shape(fibres: Fibres, garment_vertices: np.ndarray, garment_faces: np.ndarray,
-                material: Material) -> Any:
-    """A Mitsuba ``linearcurve`` shape of the fibres on the given garment vertices."""
-    mi = mitsuba()
-    pts = fibres.control_points(garment_vertices, garment_faces)
-    radius = np.full(pts.shape[:2] + (1,), fibres.radius)
-    radius[:, -1] *= 0.5  # tapered tips
-    rows = np.concatenate([pts, radius], axis=-1)
-    text = "\n\n".join("\n".join(" ".join(f"{x:.7g}" for x in p) for p in curve) for curve in rows)
-    fibre_material = Material(material.brdf, dict(material.params, base_color=fibres.color.tolist()))
-    fd, path = tempfile.mkstemp(suffix=".txt", prefix="pgc_fibres_")
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text + "\n")
-        return mi.load_dict({"type": "linearcurve", "filename": path, "bsdf": material_to_bsdf(fibre_material)})
-    finally:
-        os.unlink(path)
-
-
 class MitsubaSceneRenderer(SceneRenderer):
     Options = MitsubaSceneOptions
     light_kinds = ("constant", "envmap")
@@ -102,10 +82,11 @@ class MitsubaSceneRenderer(SceneRenderer):
             scene["garment"] = mesh_to_mitsuba(surface.vertices, surface.faces, name="garment", uv=surface.uv,
                                                face_uv=surface.face_uv, vertex_normals=True,
                                                bsdf=mi.load_dict(garment_bsdf(geometry.material, geometry.normal_map)))
-            labels = {"body": LABEL_BODY, "garment": LABEL_GARMENT}
+            labels = {"body": BODY_LABEL, "garment": GARMENT_LABEL}
             if geometry.fibres is not None:
-                scene["fibres"] = fibre_shape(geometry.fibres, g.vertices, g.faces, geometry.material)
-                labels["fibres"] = LABEL_GARMENT
+                shapes = fibre_shapes(geometry.fibres, g.vertices, g.faces, geometry.material)
+                scene.update(shapes)
+                labels.update(dict.fromkeys(shapes, GARMENT_LABEL))
         return mi.load_dict(scene), labels
 
     def render_color(self, scene: Any, camera: Camera, spp: int, seed: int, sampler: str = "independent"
@@ -134,12 +115,14 @@ class MitsubaSceneRenderer(SceneRenderer):
         label = np.zeros(len(o), np.uint8)
         for shape in scene.shapes():
             hit = np.array(si.shape == mi.ShapePtr(shape), dtype=bool) & valid
-            label[hit] = labels.get(shape.id(), LABEL_BODY)
+            label[hit] = labels.get(shape.id(), BODY_LABEL)
         t = np.array(si.t, dtype=np.float64)
         uv = np.stack([np.array(si.uv.x), np.array(si.uv.y)], axis=1)
         z = np.where(valid, t * (d @ camera.R[2]), 0.0)
         on_fibre = None
         if geometry.fibres is not None:
-            fibre_ptr = [s for s in scene.shapes() if s.id() == "fibres"]
-            on_fibre = np.array(si.shape == mi.ShapePtr(fibre_ptr[0]), dtype=bool) & valid
+            on_fibre = np.zeros(len(o), bool)
+            for shape in scene.shapes():
+                if shape.id().startswith(FIBRE_ID):
+                    on_fibre |= np.array(si.shape == mi.ShapePtr(shape), dtype=bool) & valid
         return layers_from_samples(geometry, camera, samples, valid, label, z, uv, on_fibre)

@@ -11,11 +11,10 @@ from pgc.registry import ImplementationSpec
 
 
 class TorchSplatOptions(Options):
-    compositor: Literal["auto", "fused", "cpp", "torch"] = Field(
+    compositor: Literal["auto", "fused", "torch"] = Field(
         "auto", description="rendering path: 'fused' (projection, SH, binning, compositing and their backward in "
-                            "one compiled SIMD/OpenMP kernel), 'cpp' (torch projection, compiled compositing "
-                            "kernel), 'torch' (vectorised pure torch compositing, slow; cross-check), 'auto' "
-                            "(fused if it builds, else cpp, else torch); kernels are built once and cached")
+                            "one compiled SIMD/OpenMP kernel, built once and cached), 'torch' (pure torch: needs no "
+                            "compiler, slow; the cross-check), 'auto' (fused if it builds, else torch)")
     tile_size: int = Field(16, ge=4, le=64, description="tile edge in pixels for binning")
     threads: int = count(0, 0, MAX_THREADS, "kernel threads; 0 = the cores allotted to the process (OMP_NUM_THREADS, "
                          "else all usable cores)")
@@ -24,5 +23,6 @@ class TorchSplatOptions(Options):
 
 SPECS = [ImplementationSpec(
     role="splat_renderer", name="torch", factory="pgc_torch.splat.renderer:TorchSplatRenderer",
-    description="EWA Gaussian splatting in torch with a compiled OpenMP compositing kernel; mesh-embedded fit",
+    description="EWA Gaussian splatting in torch on the fused compiled kernel (pure-torch fallback); "
+                "mesh-embedded fit",
     options="pgc_torch.specs_splat:TorchSplatOptions", requires=("torch",), extra="torch")]

@@ -6,11 +6,11 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from pgc.arrays import LIBRARIES, array_ops
 from pgc.brdfs.maths import EVALUATORS
 from pgc.brdfs.parameters import PARAMETERS
-from pgc.brdfs.xp import namespace
 from pgc.checks import require_finite
-from pgc.errors import PGCDataError
+from pgc.errors import PGCConfigError, PGCDataError
 from pgc.roles.brdf import BRDF, BRDFParameter
 
 
@@ -47,7 +47,9 @@ class ClothBRDF(BRDF):
         for name, value in full.items():
             if isinstance(value, (int, float, list, tuple, np.ndarray)):
                 require_finite(where, f"parameter '{name}'", value)
-        return EVALUATORS[self.model](namespace(backend), wi, wo, base_color, full)
+        if backend not in LIBRARIES:
+            raise PGCConfigError(f"{where}: unknown BRDF backend '{backend}'; use one of: {', '.join(LIBRARIES)}")
+        return EVALUATORS[self.model](array_ops(backend), wi, wo, base_color, full)
 
 
 class LambertianBRDF(ClothBRDF):

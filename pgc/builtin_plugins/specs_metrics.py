@@ -20,13 +20,13 @@ class FSIMOptions(Options):
 
 
 SPECS = [
-    ImplementationSpec(role="metric", name="psnr", factory="pgc.metrics.roles:PSNRMetric",
+    ImplementationSpec(role="metric", name="psnr", factory="pgc.builtin_plugins.metrics:PSNRMetric",
                        description="peak signal-to-noise ratio in dB (sRGB values by default; masked MSE)",
                        options="pgc.builtin_plugins.specs_metrics:PSNROptions", requires=("scipy",)),
-    ImplementationSpec(role="metric", name="ssim", factory="pgc.metrics.roles:SSIMMetric",
+    ImplementationSpec(role="metric", name="ssim", factory="pgc.builtin_plugins.metrics:SSIMMetric",
                        description="SSIM, Gaussian window 11 / sigma 1.5, standard constants, on sRGB values",
                        requires=("scipy",)),
-    ImplementationSpec(role="metric", name="fsim", factory="pgc.metrics.roles:FSIMMetric",
+    ImplementationSpec(role="metric", name="fsim", factory="pgc.builtin_plugins.metrics:FSIMMetric",
                        description="FSIMc (Zhang et al. 2011): phase congruency + Scharr gradient + YIQ chroma",
                        options="pgc.builtin_plugins.specs_metrics:FSIMOptions", requires=("scipy",)),
 ]

@@ -41,11 +41,11 @@ _REQ = ("pymeshlab", "xatlas")
 
 SPECS = [
     ImplementationSpec(
-        role="reconstructor", name="visual_hull", factory="pgc.geometry.reconstructors:VisualHullReconstructor",
+        role="reconstructor", name="visual_hull", factory="pgc.builtin_plugins.reconstructors:VisualHullReconstructor",
         description="visual hull of the masks (silhouette distance field + surface nets); fast baseline",
         options="pgc.builtin_plugins.specs_reconstruct:VisualHullOptions", requires=_REQ, extra="meshlab"),
     ImplementationSpec(
-        role="reconstructor", name="mesh", factory="pgc.geometry.reconstructors:MeshFileReconstructor",
+        role="reconstructor", name="mesh", factory="pgc.builtin_plugins.reconstructors:MeshFileReconstructor",
         description="a user's own scan or mesh (OBJ/PLY/glTF) aligned to the capture frame",
         options="pgc.builtin_plugins.specs_reconstruct:MeshFileOptions", requires=_REQ, extra="meshlab"),
 ]

@@ -120,22 +120,11 @@ def writing(folder: str | os.PathLike, command: str) -> Iterator[None]:
 
 
 
-def read_json_file(path: Path, what: str, fix: str) -> Any:
-    """A JSON file's content, or a clear error naming the file (missing, not UTF-8, malformed, over the limits
-    of :func:`pgc.io.limits.read_json`) and ``fix``."""
-    from pgc.io.limits import read_json
-
-    if not path.is_file():
-        raise PGCDataError(f"{path}: not found; {fix}")
-    try:
-        return read_json(path, what)
-    except PGCDataError as exc:
-        raise PGCDataError(f"{exc}; {fix}") from None
-
-
 def read_json_object(path: Path, fix: str) -> dict[str, Any]:
     """A JSON object from ``path``, or a clear error naming the file (missing, malformed, not an object)."""
-    data = read_json_file(path, path.name, fix)
+    from pgc.io.limits import read_json
+
+    data = read_json(path, path.name, fix=fix)
     if not isinstance(data, dict):
         raise PGCDataError(f"{path}: must be a JSON object, got {type(data).__name__}; {fix}")
     return data

@@ -6,8 +6,9 @@ import argparse
 from pathlib import Path
 
 from pgc.checks import naming_output
-from pgc.commands._common import check_out_folder, emit, read_json_file, read_json_object
+from pgc.commands._common import check_out_folder, emit, read_json_object
 from pgc.errors import PGCDataError
+from pgc.io.limits import read_json
 
 EPILOG = """\
 examples:
@@ -49,7 +50,7 @@ def check_inputs(folder: Path, bench: str | None) -> None:
         _object(run / "metrics.json", f"evaluate the run again with 'pgc eval {run} --gt CAPTURE'", optional=True)
     if bench is not None:
         path = Path(bench) / "bench.json" if Path(bench).is_dir() else Path(bench)
-        data = read_json_file(path, "bench.json", "make one with 'pgc bench --out DIR' and pass that DIR")
+        data = read_json(path, "bench.json", fix="make one with 'pgc bench --out DIR' and pass that DIR")
         if not isinstance(data.get("records") if isinstance(data, dict) else data, list):
             raise PGCDataError(f"{path}: expected a list of bench records (or an object with 'records'); rerun "
                                "'pgc bench'")

@@ -35,9 +35,12 @@ presets: tiny (6 views, 64 px, seconds)
            with seams, ribbed hems, a patch pocket and folds as geometry)
          cotton (the earlier default: 128 views at 256 px of the whole body; the same tee, loose, no detail)
          large (64 views, 1024 px, whole body)
-         knit (32 views, 320 px, garment framing: a rib-knit tee resting on the body with knit relief, ribbed
-           bands, seams, a patch pocket and folds as geometry, and fibre fuzz)
-fabrics: cotton, fleece, knit, rib-knit, satin-like, lambertian
+         knit (32 views, 320 px, garment framing: a rib-knit (pgc-sheen) tee resting on the body with knit
+           relief, ribbed bands, seams, a patch pocket and folds as geometry, and fibre fuzz)
+fabrics: fibre truths (a Lambertian surface under a layer of fibres shaded by a fibre scattering model):
+           cotton, fleece, knit, velvet, satin
+         in-family controls (the BRDFs the material fit chooses from): cotton-sheen, fleece-sheen,
+           knit-sheen, rib-knit-sheen, satin-sheen (pgc-sheen), lambertian
 details: none (the simulation mesh), relief (knit wales, ribbed bands, seams, pocket, folds), seams (the same
          without the knit wales)
 """
@@ -53,8 +56,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("paths", nargs="+", metavar="OUT", help="output folder (or 'render-frames' and its paths)")
     p.add_argument("--preset", default="default", help="tiny, default, cotton, large or knit (default: default)")
     p.add_argument("--garment", default=None, help="tshirt or dress (default: the preset's)")
-    p.add_argument("--fabric", default=None, help="cotton, fleece, knit, rib-knit, satin-like, lambertian "
-                                                  "(default: the preset's)")
+    p.add_argument("--fabric", default=None, help="a fibre truth (cotton, fleece, knit, velvet, satin) or an "
+                                                  "in-family control (cotton-sheen, fleece-sheen, knit-sheen, "
+                                                  "rib-knit-sheen, satin-sheen, lambertian) (default: the preset's)")
     p.add_argument("--detail", default=None, help="near-field geometry: none, relief or seams (default: the "
                                                   "preset's)")
     p.add_argument("--fit", default=None, help="loose or resting (hangs from the shoulders) (default: the "

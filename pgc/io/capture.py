@@ -38,7 +38,7 @@ from pgc.errors import PGCDataError
 from pgc.io import images as imgio
 from pgc.io import limits
 from pgc.io.atomic import ensure_folder, write_json
-from pgc.types import Camera, Capture, Light, View
+from pgc.types import DEFAULT_LABELS, Camera, Capture, Light, View
 
 TRANSFORMS = "transforms.json"
 FORMAT_VERSION = 1
@@ -380,7 +380,7 @@ def _distortion(d: _Doc, doc: dict, frame: dict, where: str) -> np.ndarray | Non
 def _read_labels(d: _Doc, doc: dict) -> dict[int, str]:
     raw = doc.get("pgc_labels")
     if raw is None:
-        return {0: "background", 1: "body", 2: "garment"}
+        return dict(DEFAULT_LABELS)
     if not isinstance(raw, dict):
         raise d.fail("pgc_labels", "must be an object {id: name}")
     labels = {}

@@ -12,9 +12,11 @@ from __future__ import annotations
 import os
 import struct
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from pgc.arrays import float_operands
 from pgc.errors import PGCDataError, PGCPluginError
 from pgc.io import limits
 from pgc.io.atomic import atomic_path
@@ -24,18 +26,26 @@ EXR_SUFFIXES = (".exr",)
 PNG_SUFFIXES = (".png",)
 
 
-def srgb_to_linear(x: np.ndarray) -> np.ndarray:
-    """sRGB-encoded values in [0, 1] -> linear (exact piecewise transfer function), float32."""
-    x = np.clip(np.asarray(x, dtype=np.float64), 0.0, 1.0)
-    y = np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
-    return y.astype(np.float32)
+def srgb_to_linear(x: Any) -> Any:
+    """sRGB-encoded values (clipped to [0, 1]) -> linear (the exact piecewise transfer function).
+
+    Written once over :mod:`pgc.arrays`: torch and JAX arrays keep their dtype (differentiable, finite
+    gradients); anything else is computed in float64 and returned as float32 numpy (PGC's image values)."""
+    ops, x = float_operands(x)
+    x = ops.clip(x, 0.0, 1.0)
+    y = ops.where(x <= 0.04045, x / 12.92, ((ops.maximum(x, 0.04045) + 0.055) / 1.055) ** 2.4)
+    return y.astype(np.float32) if ops.name == "numpy" else y
 
 
-def linear_to_srgb(x: np.ndarray) -> np.ndarray:
-    """Linear values (clipped to [0, 1]) -> sRGB-encoded values in [0, 1], float32."""
-    x = np.clip(np.asarray(x, dtype=np.float64), 0.0, 1.0)
-    y = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
-    return y.astype(np.float32)
+def linear_to_srgb(x: Any) -> Any:
+    """Linear values (clipped to [0, 1]) -> sRGB-encoded values in [0, 1].
+
+    Written once over :mod:`pgc.arrays`: torch and JAX arrays keep their dtype (differentiable, finite gradient
+    at 0); anything else is computed in float64 and returned as float32 numpy (PGC's image values)."""
+    ops, x = float_operands(x)
+    x = ops.clip(x, 0.0, 1.0)
+    y = ops.where(x <= 0.0031308, 12.92 * x, 1.055 * ops.maximum(x, 0.0031308) ** (1.0 / 2.4) - 0.055)
+    return y.astype(np.float32) if ops.name == "numpy" else y
 
 
 def _require_finite(path: Path, values: np.ndarray) -> None:

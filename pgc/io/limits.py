@@ -94,10 +94,19 @@ def _too_deep(path: str | os.PathLike, kind: str) -> PGCDataError:
                           "the file is corrupt or hostile")
 
 
-def read_json(path: str | os.PathLike, what: str = "JSON file", limit: int = MAX_JSON_BYTES) -> Any:
+def read_json(path: str | os.PathLike, what: str = "JSON file", limit: int = MAX_JSON_BYTES, fix: str = "") -> Any:
     """Parse a JSON file read from an untrusted source: at most ``limit`` bytes, UTF-8, strict JSON, nested at
-    most :data:`MAX_DEPTH` levels. Errors name the file (``what`` says what it should be)."""
-    path = Path(path)
+    most :data:`MAX_DEPTH` levels. Errors name the file (``what`` says what it should be) and end with ``fix``
+    (what the user can do about it), when given."""
+    try:
+        return _read_json(Path(path), what, limit)
+    except PGCDataError as exc:
+        if not fix:
+            raise
+        raise PGCDataError(f"{exc}; {fix}") from None
+
+
+def _read_json(path: Path, what: str, limit: int) -> Any:
     if not path.is_file():
         raise fail(path, "", f"not found (or not a file); expected a {what}")
     check_file_size(path, limit, what)

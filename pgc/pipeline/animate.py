@@ -1,8 +1,9 @@
 """``pgc animate``: simulate an asset's garment on a body motion; the run folder holds the trajectories.
 
 A motion is a built-in name (goalpost, spooky, arms-up, walk, arm-swing: the body model stored with a
-synthetic capture, posed by :func:`pgc.synth.motions.make_motion`) or a file (an .npz with ``vertices``
-(T, V, 3) and ``faces``, or a folder of OBJ frames) whose frame 0 is the capture pose.
+synthetic capture, posed by :func:`pgc.synth.motions.make_motion`), a captured clip (.amc with its ASF, or
+.bvh: retargeted onto that body, :mod:`pgc.pipeline.motion_source`) or a file (an .npz with ``vertices`` (T, V, 3) and
+``faces``, or a folder of OBJ frames) whose frame 0 is the capture pose.
 
 Run folder: ``run.json`` (asset, motion, fps, simulator, figures), ``garment.npz`` (vertices (T, V, 3)),
 ``body.npz`` (vertices, faces); cached by content hash under ``stages/``.
@@ -22,7 +23,9 @@ from pgc.events import Reporter
 from pgc.io.atomic import write_json
 from pgc.io.limits import read_json
 from pgc.io.timings import write_timings
+from pgc.motion.drive import ClipOptions
 from pgc.pipeline.cache import StageCache, array_key, asset_key
+from pgc.pipeline.motion_source import resolve_motion
 from pgc.pipeline.runner import StageContext, StageRunner, Step
 from pgc.pipeline.stage_io import save_npz
 from pgc.stages import animate as animate_stage
@@ -56,28 +59,11 @@ def source_capture(asset_config: dict) -> Path | None:
     return Path(src) if src else None
 
 
-def resolve_motion(spec: str, capture_dir: Path | None, seconds: float | None = None) -> BodyMotion:
-    """A BodyMotion from a built-in motion name (needs the capture's body model) or a motion file."""
-    path = Path(spec)
-    if path.exists():
-        from pgc.io.motion import load_motion
-
-        return load_motion(path)
-    from pgc.synth.motions import MOTIONS, make_motion
-
-    if spec not in MOTIONS:
-        raise PGCDataError(f"motion '{spec}' is neither a file nor a built-in motion ({', '.join(MOTIONS)})")
-    if capture_dir is None or not (capture_dir / "ground_truth").is_dir():
-        raise PGCDataError(f"built-in motion '{spec}' needs the body model of a synthetic capture; the asset "
-                           "records none. Pass --capture DIR, or give a motion file (npz or OBJ folder)")
-    from pgc.synth.ground_truth import read_body_model
-
-    return make_motion(read_body_model(capture_dir), spec, seconds=seconds)
-
-
 def animate(asset_dir: str | Path, motion_spec: str, out: str | Path, cfg: RunConfig,
-            capture_dir: str | Path | None = None, reporter: Reporter | None = None) -> Path:
-    """Simulate the asset's garment on the motion; returns the run folder."""
+            capture_dir: str | Path | None = None, reporter: Reporter | None = None,
+            clip: ClipOptions = ClipOptions()) -> Path:
+    """Simulate the asset's garment on the motion (``clip``: how to read a captured clip); returns the run
+    folder."""
     from pgc.io.asset import read_asset
 
     reporter = reporter or Reporter.silent()
@@ -85,7 +71,7 @@ def animate(asset_dir: str | Path, motion_spec: str, out: str | Path, cfg: RunCo
     asset = read_asset(asset_dir)
     capture = Path(capture_dir) if capture_dir else source_capture(asset.config)
     settings = cfg.stage("animate")
-    motion = resolve_motion(motion_spec, capture, settings.seconds)
+    motion = resolve_motion(motion_spec, capture, settings.seconds, clip)
     runner = StageRunner(StageCache(out / "stages"), StageContext(cfg, reporter, AnimateInputs(asset, motion)), {
         "asset": asset_key(asset_dir), "motion": {"spec": motion_spec, "vertices": array_key(motion.vertices),
                                                   "faces": array_key(motion.faces), "fps": motion.fps}})

@@ -51,10 +51,7 @@ def rendered_frames(run_dir: Path) -> tuple[dict[str, Any], list[int]]:
     fix = f"run 'pgc render {run_dir}' (again)"
     if not meta_path.is_file():
         raise PGCDataError(f"{run_dir}: no rendered frames (render/render.json); run 'pgc render {run_dir}' first")
-    try:
-        meta = read_json(meta_path, "render.json")
-    except PGCDataError as exc:
-        raise PGCDataError(f"{exc}; {fix}") from None
+    meta = read_json(meta_path, "render.json", fix=fix)
     frames = meta.get("frames") if isinstance(meta, dict) else None
     if not isinstance(frames, list) or not frames or not all(isinstance(t, int) and t >= 0 for t in frames):
         raise PGCDataError(f"{meta_path}: field 'frames' must be a non-empty list of frame numbers; {fix}")
@@ -66,10 +63,7 @@ def rendered_frames(run_dir: Path) -> tuple[dict[str, Any], list[int]]:
         raise PGCDataError(f"{run_dir / 'render'}: frames {missing[:8]} listed in render.json are missing; {fix}")
     recorded = meta.get("inputs")
     if recorded is None and (run_dir / "render" / RENDER_INPUTS).is_file():
-        try:
-            recorded = read_json(run_dir / "render" / RENDER_INPUTS, RENDER_INPUTS)
-        except PGCDataError as exc:
-            raise PGCDataError(f"{exc}; {fix}") from None
+        recorded = read_json(run_dir / "render" / RENDER_INPUTS, RENDER_INPUTS, fix=fix)
     if recorded is not None and recorded != render_inputs(run_dir):
         raise PGCDataError(f"{run_dir / 'render'}: the frames were rendered from an earlier simulation of this run "
                            f"(garment.npz/body.npz changed since, e.g. re-animated with another motion); {fix}")
@@ -257,10 +251,7 @@ def check_folder_light(folder: Path, light: dict[str, Any], frames: list[int], r
                                "give a synthetic capture as --gt")
         return
     fix = f"give ground truth rendered under the run's light, or render {run_dir} under the folder's"
-    try:
-        doc = read_json(path, GT_LIGHT_FILE)
-    except PGCDataError as exc:
-        raise PGCDataError(f"{exc}; {fix}") from None
+    doc = read_json(path, GT_LIGHT_FILE, fix=fix)
     record = check_record(doc, str(path), fix)
     if not same_light(record, light, frames):
         raise PGCDataError(f"ground-truth folder {folder}: its images were rendered under {describe(record)} "

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pgc.types import BACKGROUND_LABEL, GaussianSet, Mesh
+from pgc.types import BACKGROUND_LABEL, BODY_LABEL, GARMENT_LABEL, GaussianSet, Mesh
 
 
 def garment_gaussians(gaussians: GaussianSet, face_selection: np.ndarray) -> GaussianSet:
@@ -14,9 +14,6 @@ def garment_gaussians(gaussians: GaussianSet, face_selection: np.ndarray) -> Gau
     kept = gaussians.select(face_selection[gaussians.parent])
     kept.parent = new_index[kept.parent]
     return kept
-
-
-BODY_LABEL = 1
 
 
 def body_occluder(full: Mesh, garment_ids: list[int]) -> Mesh | None:
@@ -33,7 +30,8 @@ def with_occluder(garment: Mesh, occluder: Mesh | None) -> Mesh:
     if occluder is None:
         return garment
     nv, nuv = len(garment.vertices), len(garment.uv)
-    labels = garment.face_labels if garment.face_labels is not None else np.full(len(garment.faces), 2, np.int32)
+    labels = garment.face_labels if garment.face_labels is not None \
+        else np.full(len(garment.faces), GARMENT_LABEL, np.int32)
     return Mesh(np.concatenate([garment.vertices, occluder.vertices]),
                 np.concatenate([garment.faces, occluder.faces + nv]),
                 np.concatenate([garment.uv, np.zeros((1, 2), np.float32)]),

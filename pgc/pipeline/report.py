@@ -5,7 +5,8 @@ a strip ground truth | 3DGS-only | PBR-only | hybrid with an error heatmap per v
 decomposition ``l(S)`` (low-pass far field) and ``h(G)`` (high-pass near field), a looping animated WebP of
 ground truth and hybrid side by side over the rendered frames, and, when the run was rendered with
 ``--rotate-light``, its relighting strip. Charts (SVG): metrics per motion, stage timings, and speed
-against error from ``pgc bench`` records when given. Everything lives in ``OUT/report.html`` and
+against error from ``pgc bench`` records when given; the first run's garment on its body in an interactive 3D
+viewer (:mod:`pgc.pipeline.report_3d`). Everything lives in ``OUT/report.html`` and
 ``OUT/report/`` (relative links, no network); the page states its own size.
 """
 
@@ -24,6 +25,7 @@ from pgc.io.atomic import write_text
 from pgc.io.limits import read_json
 from pgc.pipeline import report_figures as figs
 from pgc.pipeline.evaluate import VARIANTS
+from pgc.pipeline.report_3d import view_section
 
 FIGURES = "report"
 """Folder of the report's pictures, beside report.html."""
@@ -247,10 +249,7 @@ def _bench_records(bench: Path | None) -> list[dict[str, Any]]:
     path = bench / "bench.json" if bench.is_dir() else bench
     if not path.is_file():
         raise PGCDataError(f"{bench}: no bench.json; make one with 'pgc bench --out DIR' and pass that DIR")
-    try:
-        data = read_json(path, "bench.json")
-    except PGCDataError as exc:
-        raise PGCDataError(f"{exc}; rerun 'pgc bench'") from None
+    data = read_json(path, "bench.json", fix="rerun 'pgc bench'")
     records = data.get("records", data) if isinstance(data, dict) else data
     if not isinstance(records, list):
         raise PGCDataError(f"{path}: expected a list of bench records (or an object with 'records')")
@@ -263,7 +262,9 @@ h2{border-bottom:1px solid #ddd;padding-bottom:2px;margin-top:1.6em} h3{margin:1
 img.crop,img.anim{image-rendering:pixelated;background:#000} img.small{height:120px}
 figcaption{font-size:12px;text-align:center;color:#444;max-width:320px} .note{color:#555;font-size:13px}
 table{border-collapse:collapse;font-size:13px} td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}
-code{background:#f3f3f3;padding:0 3px} #load-check{font-size:12px;color:#555}"""
+code{background:#f3f3f3;padding:0 3px} #load-check{font-size:12px;color:#555}
+figure.view3d{width:min(100%,720px)} model-viewer{width:100%;height:540px;background:#f4f4f4}
+figure.view3d figcaption{max-width:none;text-align:left}"""
 
 LOAD_CHECK = """<script>
 window.addEventListener('load', function () {
@@ -333,6 +334,8 @@ def build_report(out: Path, title: str, views: list[RunView], summary: dict[str,
         " (the environment turns 360 degrees over the frames; a synthetic capture ships environment maps in "
         "<code>CAPTURE/ground_truth/envmaps/</code>), then <code>pgc report RUN</code>. Rendering replaces the "
         "run's frames: relight a copy of the run folder.</p>")
+    view3d = view_section(views[0].folder, _asset_folder(out, views[0]), views[0].run, views[0].motion, FIGURES,
+                          f.path)
     f.sweep()
     sizes = sum(p.stat().st_size for p in f.written)
     config = summary.get("config")
@@ -346,6 +349,7 @@ ground truth rendered with the true material on the same simulated geometry. Eac
 and enlarged by whole pixels (nearest neighbour), so every rendered pixel is visible.</p>
 <p id="load-check">pictures not checked yet</p>
 <h2>Motions</h2>{sections}{relight_note}
+{view3d}
 {''.join(charts)}
 {config_html}
 <p class='note'>This report: report.html and {len(f.written)} files in {FIGURES}/ ({{size}}); relative links only, opens
@@ -365,6 +369,14 @@ def write_report(out: str | Path, summary: dict[str, Any], results: dict[str, di
     views = [read_run_view(_run_folder(out, motion, res), motion) for motion, res in results.items()]
     build_report(out, f"PGC demo: preset '{summary.get('preset')}'", views, summary)
     return out / "report.html"
+
+
+def _asset_folder(out: Path, view: RunView) -> Path:
+    """The asset of ``view``: OUT/asset when OUT is a demo folder (which may have moved), else the recorded one."""
+    from pgc.io.asset import MANIFEST
+
+    local = out / "asset"
+    return local if (local / MANIFEST).is_file() else Path(str(view.run.get("asset")))
 
 
 def _run_folder(out: Path, motion: str, result: dict[str, Any]) -> Path:

@@ -11,7 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pgc.sim.kernels import NUMPY, closest_barycentric
+from pgc.arrays import array_ops
+from pgc.sim.kernels import closest_barycentric
 from pgc.types import Mesh
 
 
@@ -35,7 +36,7 @@ def embed(points: np.ndarray, mesh: Mesh, candidates: int = 12) -> Embedding:
     cand = np.asarray(cand, dtype=np.int64).reshape(len(pts), k)  # (N, k) face ids, nearest centroids
     corners = mesh.faces[cand]
     a, b, c = (mesh.vertices[corners[..., i]] for i in range(3))
-    u, v, w = closest_barycentric(NUMPY, pts[:, None], a, b, c)
+    u, v, w = closest_barycentric(array_ops("numpy"), pts[:, None], a, b, c)
     closest = u[..., None] * a + v[..., None] * b + w[..., None] * c
     best = np.argmin(np.linalg.norm(closest - pts[:, None], axis=-1), axis=1)
     rows = np.arange(len(pts))

@@ -6,7 +6,7 @@ Contract
   either direction is below the surface; finite for every input (grazing angles, parameters at bounds).
 - ``backend`` selects the array library of the inputs and the output: "numpy", "torch", "jax"; gradients
   flow through the torch/jax versions (a backend evaluates the same maths on its own arrays by passing its
-  :class:`pgc.brdfs.xp.BrdfOps` subclass to :mod:`pgc.brdfs.maths`, as the Mitsuba BSDFs do).
+  :class:`pgc.arrays.ArrayOps` subclass to :mod:`pgc.brdfs.maths`, as the Mitsuba BSDFs do).
 - ``base_color`` is the spatially varying diffuse albedo sigma_d (..., 3); ``params`` maps every name of
   :attr:`BRDF.parameters` to a scalar or RGB value (broadcastable).
 - Energy: for every wo, the hemispherical integral of eval_cos over wi is at most 1 per channel when

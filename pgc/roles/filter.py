@@ -17,7 +17,6 @@ Contract
 
 from __future__ import annotations
 
-import functools
 import math
 import numbers
 from abc import ABC, abstractmethod
@@ -64,26 +63,18 @@ def _checked(lowpass: Callable[..., np.ndarray]) -> Callable[..., np.ndarray]:
     """``lowpass`` given the inputs as (:func:`check_filter_inputs` and
     :func:`pgc.filtering.kernel.check_kernel_size` return them (float32, alpha clipped to [0, 1])."""
 
-    @functools.wraps(lowpass)
     def checked(self: "Filter", image: np.ndarray, alpha: np.ndarray, kernel_size: int, *args: Any,
                 **kwargs: Any) -> np.ndarray:
         image, alpha = check_filter_inputs(image, alpha)
         return lowpass(self, image, alpha, check_kernel_size(kernel_size), *args, **kwargs)
 
-    checked.inputs_checked = True  # type: ignore[attr-defined]
     return checked
 
 
 class Filter(RoleImplementation, ABC):
     role = "filter"
-
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        """Every implementation's ``lowpass`` checks its inputs first (see the contract)."""
-        super().__init_subclass__(**kwargs)
-        lowpass = cls.__dict__.get("lowpass")
-        if callable(lowpass) and not getattr(lowpass, "__isabstractmethod__", False) \
-                and not getattr(lowpass, "inputs_checked", False):
-            cls.lowpass = _checked(lowpass)  # type: ignore[method-assign]
+    input_checks = {"lowpass": _checked}
+    """Every implementation's ``lowpass`` checks its inputs first (see the contract)."""
 
     @abstractmethod
     def lowpass(self, image: np.ndarray, alpha: np.ndarray, kernel_size: int) -> np.ndarray:

@@ -18,7 +18,6 @@ Contract
 
 from __future__ import annotations
 
-import functools
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -58,9 +57,8 @@ class MaterialFitSettings(Options):
     processes, up to the cores the process is allotted) and their gradients summed in shard order: the result
     does not depend on the thread count (Dr.Jit's multi-threaded gradient sums do, by racy atomic adds)."""
     parallel_min_pixels: int = count(16384, 0, 2**31 - 1)
-    """Shards render in parallel processes only when a film has at least this many pixels: a worker process
-    takes about half a second to start, more than a small fit saves (the tiny demo's 48 px films take 40 steps
-    of a few milliseconds). The result is the same bytes either way."""
+    """Shards render in parallel processes only when a film has at least this many pixels: starting a worker
+    process costs more than a small film's steps save (docs/pbr.md). The result is the same bytes either way."""
     max_depth: int = count(4, 2, 64)
     """Path length while fitting and when comparing models (4: direct light plus two indirect bounces;
     light trapped between garment and body needs them)."""
@@ -116,27 +114,18 @@ def check_shading_inputs(material: Material, light: Light, where: str = "pbr_ren
 def _checked(method: Callable[..., Any]) -> Callable[..., Any]:
     """``method`` (``render`` or ``render_texture``) preceded by :func:`check_shading_inputs`."""
 
-    @functools.wraps(method)
     def checked(self: "PBRRenderer", mesh: Mesh, material: Material, light: Light, *args: Any,
                 **kwargs: Any) -> Any:
         check_shading_inputs(material, light, f"pbr_renderer {type(self).__name__}.{method.__name__}")
         return method(self, mesh, material, light, *args, **kwargs)
 
-    checked.inputs_checked = True  # type: ignore[attr-defined]
     return checked
 
 
 class PBRRenderer(RoleImplementation, ABC):
     role = "pbr_renderer"
-
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        """Every implementation's ``render`` and ``render_texture`` check the material and light first."""
-        super().__init_subclass__(**kwargs)
-        for name in ("render", "render_texture"):
-            method = cls.__dict__.get(name)
-            if callable(method) and not getattr(method, "__isabstractmethod__", False) \
-                    and not getattr(method, "inputs_checked", False):
-                setattr(cls, name, _checked(method))
+    input_checks = {"render": _checked, "render_texture": _checked}
+    """Every implementation's ``render`` and ``render_texture`` check the material and light first."""
 
     @abstractmethod
     def render(self, mesh: Mesh, material: Material, light: Light, camera: Camera,

@@ -27,7 +27,6 @@ progress through ``reporter``, and returns a :class:`SplatFit`. Implementations 
 
 from __future__ import annotations
 
-import functools
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -171,26 +170,18 @@ def _checked(render: Callable[..., RenderOutput]) -> Callable[..., RenderOutput]
     """``render`` preceded by :func:`check_render_inputs` (at the public entry: the fits call their backends'
     steps, not ``render``)."""
 
-    @functools.wraps(render)
     def checked(self: "SplatRenderer", gaussians: WorldGaussians, camera: Camera, background: np.ndarray | None = None,
                 *args: Any, **kwargs: Any) -> RenderOutput:
         check_render_inputs(gaussians, background, f"splat_renderer {type(self).__name__}.render")
         return render(self, gaussians, camera, background, *args, **kwargs)
 
-    checked.inputs_checked = True  # type: ignore[attr-defined]
     return checked
 
 
 class SplatRenderer(RoleImplementation, ABC):
     role = "splat_renderer"
-
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        """Every implementation's ``render`` checks its inputs first (:func:`check_render_inputs`)."""
-        super().__init_subclass__(**kwargs)
-        render = cls.__dict__.get("render")
-        if callable(render) and not getattr(render, "__isabstractmethod__", False) \
-                and not getattr(render, "inputs_checked", False):
-            cls.render = _checked(render)  # type: ignore[method-assign]
+    input_checks = {"render": _checked}
+    """Every implementation's ``render`` checks its inputs first (:func:`check_render_inputs`)."""
 
     @abstractmethod
     def render(self, gaussians: WorldGaussians, camera: Camera, background: np.ndarray | None = None,

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from pgc.sim.kernels import NUMPY, closest_contact
+from pgc.arrays import array_ops
+from pgc.sim.kernels import closest_contact
 from pgc.types import Mesh
 
 
@@ -29,7 +30,7 @@ def signed_distance(points: np.ndarray, body: np.ndarray, faces: np.ndarray, k: 
     """(V,) signed distance (m) of ``points`` to the body surface (negative inside), using the ``k`` nearest
     triangles by centroid and the blended vertex normal at the closest point for the sign."""
     corners = candidate_corners(points, body, faces, k)
-    con = closest_contact(NUMPY, points.astype(np.float64), body.astype(np.float64),
+    con = closest_contact(array_ops("numpy"), points.astype(np.float64), body.astype(np.float64),
                           vertex_normals(body.astype(np.float64), faces), corners)
     return con.signed
 

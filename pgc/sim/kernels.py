@@ -1,8 +1,8 @@
 """XPBD cloth maths written once for numpy, torch and JAX.
 
-The functions take an :class:`ArrayOps` (the array namespace plus the few calls that differ between the
-libraries) and are pure: they return new arrays. The torch backend runs them eagerly, the JAX backend jits
-them (``ops.loop`` becomes ``lax.fori_loop``), numpy uses them for measurements.
+The functions take the :class:`pgc.arrays.ArrayOps` of an array library and are pure: they return new
+arrays. The torch backend runs them eagerly, the JAX backend jits them (``ops.loop`` becomes
+``lax.fori_loop``), numpy uses them for measurements.
 
 Conventions: positions (V, 3) in metres; a constraint group is the tuple ``(ci, cj, rest, alpha_t, share)``
 (vertex indices, rest lengths, compliance / h^2, and the factor applied to each multiplier update: 1 for a
@@ -11,49 +11,18 @@ graph colour, ``omega / max(n_i, n_j)`` for a Jacobi sweep); multipliers ``lam``
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
-import numpy as np
+from pgc.arrays import ArrayOps
 
 EPS = 1e-9
 """Lengths (m) below this have no direction: such constraints and contacts are skipped."""
 
 
-@dataclass(frozen=True)
-class ArrayOps:
-    """The array library: ``xp`` (numpy-like namespace: where, sqrt, arange) plus the calls that differ."""
-
-    xp: Any
-    index_add: Callable[[Any, Any, Any], Any]
-    """``index_add(a, idx, values)`` -> copy of ``a`` with ``values`` added at rows ``idx`` (repeats sum)."""
-    loop: Callable[[int, Callable[[Any, Any], Any], Any], Any]
-    """``loop(n, body, carry)`` -> carry after ``carry = body(k, carry)`` for k in range(n)."""
-
-
-def _np_index_add(a: np.ndarray, idx: np.ndarray, values: np.ndarray) -> np.ndarray:
-    out = a.copy()
-    np.add.at(out, idx, values)
-    return out
-
-
-def python_loop(n: int, body: Callable[[Any, Any], Any], carry: Any) -> Any:
-    for k in range(n):
-        carry = body(k, carry)
-    return carry
-
-
-NUMPY = ArrayOps(np, _np_index_add, python_loop)
-
-
-def norm(ops: ArrayOps, v: Any) -> Any:
-    return ops.xp.sqrt((v * v).sum(-1))
-
-
 def unit(ops: ArrayOps, v: Any) -> Any:
     """Normalised rows; zero rows stay zero."""
-    n = norm(ops, v)
+    n = ops.norm(v)
     return v / ops.xp.where(n > EPS, n, 1.0)[..., None]
 
 
@@ -67,7 +36,7 @@ def project_distance(ops: ArrayOps, p: Any, inv_mass: Any, group: tuple, lam: An
     xp = ops.xp
     ci, cj, rest, alpha_t, share = group
     d = p[ci] - p[cj]
-    length = norm(ops, d)
+    length = ops.norm(d)
     wi, wj = inv_mass[ci], inv_mass[cj]
     denom = wi + wj + alpha_t
     good = (length > EPS) & (denom > 0)
@@ -82,7 +51,7 @@ def project_distance(ops: ArrayOps, p: Any, inv_mass: Any, group: tuple, lam: An
 def constraint_residual(ops: ArrayOps, p: Any, group: tuple, lam: Any) -> tuple[Any, Any]:
     """Per-constraint XPBD residual ``C + alpha_t lam`` (m) and constraint value ``C`` (m)."""
     ci, cj, rest, alpha_t, _ = group
-    c = norm(ops, p[ci] - p[cj]) - rest
+    c = ops.norm(p[ci] - p[cj]) - rest
     return c + alpha_t * lam, c
 
 
@@ -173,7 +142,7 @@ def push_out(ops: ArrayOps, p: Any, point: Any, normal: Any, active: Any, offset
 def contact_mask(ops: ArrayOps, p: Any, con: Contact, radius: float, free: Any) -> Any:
     """Vertices that collide: free and within ``radius`` of the body surface (far from the surface the side
     test of a candidate triangle is unreliable: the wrong side of a thin limb, an open body)."""
-    return (free > 0) & (norm(ops, p - con.point) < radius)
+    return (free > 0) & (ops.norm(p - con.point) < radius)
 
 
 def collide_body(ops: ArrayOps, p: Any, x_start: Any, body: Any, body_start: Any, normals: Any, corners: Any,
@@ -193,7 +162,7 @@ def collide_body(ops: ArrayOps, p: Any, x_start: Any, body: Any, body_start: Any
     body_move = con.point - (con.bary[..., None] * body_start[con.tri]).sum(-2)
     rel = (p - x_start) - body_move
     tang = rel - (rel * con.normal).sum(-1)[:, None] * con.normal
-    tl = norm(ops, tang)
+    tl = ops.norm(tang)
     scale = xp.where(hit & (tl > EPS), (friction * depth / xp.where(tl > EPS, tl, 1.0)).clip(max=1.0), 0.0)
     return p - scale[:, None] * tang
 
@@ -202,7 +171,7 @@ def separate_pairs(ops: ArrayOps, p: Any, inv_mass: Any, pi: Any, pj: Any, valid
     """Self-collision: push apart vertex pairs closer than ``thickness`` (Jacobi, averaged per vertex)."""
     xp = ops.xp
     d = p[pi] - p[pj]
-    length = norm(ops, d)
+    length = ops.norm(d)
     wi, wj = inv_mass[pi], inv_mass[pj]
     active = valid & (length < thickness) & (length > EPS) & (wi + wj > 0)
     n = d / xp.where(active, length, 1.0)[:, None]
@@ -280,7 +249,7 @@ def advance_frame(ops: ArrayOps, s: StepSettings, statics: Statics, x: Any, v: A
         normals = unit(ops, frame.normals0 + t1 * (frame.normals1 - frame.normals0))
         v = v * s.damping + (s.h * statics.free)[:, None] * statics.gravity
         step = s.h * v
-        length = norm(ops, step)
+        length = ops.norm(step)
         # no vertex moves more than half the contact radius per substep: nothing tunnels through the body
         p = x + step * (s.max_step / xp.where(length > s.max_step, length, s.max_step))[:, None]
 

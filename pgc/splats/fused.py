@@ -35,7 +35,7 @@ VECTOR_FLAGS = ("-fno-trapping-math",)
 DEFAULT_TILE = 16
 """Tile edge (pixels) of the kernel's binning; the image does not depend on it."""
 __all__ = ["DEFAULT_TILE", "KernelUnavailable", "Workspace", "available", "backward", "build", "camera_vector", "flags",
-           "forward", "load", "machine_peaks", "render_stats"]
+           "forward", "load", "machine_peaks", "render_path", "render_stats"]
 
 
 def cpu_flags() -> set[str]:
@@ -85,6 +85,17 @@ def load() -> ctypes.CDLL:
 def available() -> bool:
     """Whether the fused kernel builds and loads here."""
     return native.loads(load)
+
+
+def render_path(choice: str, fallback: str, host: bool = True) -> str:
+    """The render path a renderer's ``compositor`` option names: "auto" is "fused" when the arrays live on the
+    host (``host``) and the kernel builds here, else ``fallback``; "fused" loads the kernel (raising
+    :class:`KernelUnavailable` with the reason); any other choice is returned as it is."""
+    if choice == "auto":
+        return "fused" if host and available() else fallback
+    if choice == "fused":
+        load()
+    return choice
 
 
 def camera_vector(camera: Camera, near: float) -> np.ndarray:

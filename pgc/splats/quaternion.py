@@ -1,49 +1,58 @@
-"""Quaternion helpers, (w, x, y, z) layout, numpy float64.
+"""Quaternion helpers, (w, x, y, z) layout, written once over :mod:`pgc.arrays` (numpy, torch and JAX arrays).
 
-Convention shared by every backend: a quaternion is normalised by ``max(|q|, QUAT_EPS)``, so the zero
-quaternion maps to the zero vector and :func:`quat_to_rotmat` turns it into the identity rotation.
+Convention shared by every backend: a quaternion is normalised by its norm; one of norm at most ``QUAT_EPS``
+counts as zero and means the identity rotation. Torch and JAX arrays keep their dtype (and autodiff graph, with
+finite gradients at zero); anything else is computed as a float64 numpy array.
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+
+from pgc.arrays import float_operands
 
 QUAT_EPS = 1e-12
 """Norm below which a quaternion counts as zero (it then means the identity rotation)."""
 
 
-def quat_normalize(q: np.ndarray) -> np.ndarray:
+def quat_normalize(q: Any) -> Any:
     """(..., 4) -> unit quaternions; zero quaternions become (1, 0, 0, 0)."""
-    q = np.asarray(q, dtype=np.float64)
-    n = np.linalg.norm(q, axis=-1, keepdims=True)
-    unit = q / np.maximum(n, QUAT_EPS)
-    identity = np.zeros_like(q)
-    identity[..., 0] = 1.0
-    return np.where(n > QUAT_EPS, unit, identity)
+    ops, q = float_operands(q)
+    n2 = (q * q).sum(-1)[..., None]
+    big = n2 > QUAT_EPS * QUAT_EPS
+    unit = q / ops.sqrt(ops.where(big, n2, 1.0))  # the guard keeps the gradient finite at zero
+    return ops.where(big, unit, ops.asarray([1.0, 0.0, 0.0, 0.0], like=q))
 
 
-def quat_to_rotmat(q: np.ndarray) -> np.ndarray:
+def quat_to_rotmat(q: Any) -> Any:
     """(..., 4) quaternions (any norm; zero means identity) -> (..., 3, 3) rotation matrices."""
-    w, x, y, z = np.moveaxis(quat_normalize(q), -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+    ops, q = float_operands(q)
+    u = quat_normalize(q)
+    w, x, y, z = u[..., 0], u[..., 1], u[..., 2], u[..., 3]
+    return ops.stack([
+        ops.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        ops.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        ops.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
     ], -2)
 
 
-def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def quat_multiply(a: Any, b: Any) -> Any:
     """Hamilton product ``a b`` of (..., 4) quaternions (rotation b first, then a)."""
-    aw, ax, ay, az = np.moveaxis(np.asarray(a, dtype=np.float64), -1, 0)
-    bw, bx, by, bz = np.moveaxis(np.asarray(b, dtype=np.float64), -1, 0)
-    return np.stack([aw * bw - ax * bx - ay * by - az * bz,
-                     aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw], -1)
+    ops, a = float_operands(a)
+    _, b = float_operands(b)
+    aw, ax, ay, az = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
+    bw, bx, by, bz = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
+    return ops.stack([aw * bw - ax * bx - ay * by - az * bz,
+                      aw * bx + ax * bw + ay * bz - az * by,
+                      aw * by - ax * bz + ay * bw + az * bx,
+                      aw * bz + ax * by - ay * bx + az * bw], -1)
 
 
 def rotmat_to_quat(m: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) rotation matrices -> (..., 4) unit quaternions with w >= 0 (Shepperd's method)."""
+    """(..., 3, 3) rotation matrices -> (..., 4) unit quaternions with w >= 0 (Shepperd's method), numpy float64:
+    only the numpy binding (world quaternions of stored Gaussians) needs it."""
     m = np.asarray(m, dtype=np.float64)
     m00, m11, m22 = m[..., 0, 0], m[..., 1, 1], m[..., 2, 2]
     cands = np.stack([

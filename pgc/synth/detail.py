@@ -23,12 +23,11 @@ Offsets are a height field of the rest-pose position (outward only, so the relie
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 
 from pgc.errors import PGCDataError
-from pgc.synth.embed import embedded_points
+from pgc.geometry.embedded import DetailSurface, embedded_points
 from pgc.synth.fabrics import smoothstep, value_noise
 from pgc.types import Mesh
 
@@ -71,87 +70,6 @@ def get_detail(name: str) -> DetailSpec | None:
         raise PGCDataError(f"unknown detail '{name}' (pgc synth --detail, or a preset's detail); use one of: "
                           f"{', '.join(DETAILS)}")
     return DETAILS[name]
-
-
-# ------------------------------------------------------------------------------------------- embedding
-
-
-def _lattice(level: int) -> tuple[np.ndarray, np.ndarray]:
-    """Barycentric lattice of one triangle: integer weights (M, 3) on corners (a, b, c), summing to
-    ``level``, and the (level^2, 3) local triangles, oriented like (a, b, c)."""
-    jk = [(j, k) for j in range(level + 1) for k in range(level + 1 - j)]
-    index = {p: i for i, p in enumerate(jk)}
-    weights = np.array([(level - j - k, j, k) for j, k in jk], np.int64)
-    tris = [(index[j, k], index[j + 1, k], index[j, k + 1]) for j, k in jk if j + k <= level - 1]
-    tris += [(index[j + 1, k], index[j + 1, k + 1], index[j, k + 1]) for j, k in jk if j + k <= level - 2]
-    return weights, np.array(tris, np.int64)
-
-
-@dataclass
-class DetailSurface:
-    """A fine surface embedded in a garment of ``faces`` (and its UV atlas ``face_uv``/``uv``)."""
-
-    level: int
-    """Each garment triangle is split into level^2 triangles."""
-    offset: np.ndarray
-    """(N,) offset of each fine vertex along the interpolated garment normal, metres."""
-    garment_faces: np.ndarray
-    garment_uv: np.ndarray
-    garment_face_uv: np.ndarray
-
-    @cached_property
-    def _topology(self) -> tuple[np.ndarray, ...]:
-        """Parent face, barycentrics, fine faces, fine face_uv, fine uv, parent face of each fine face."""
-        f = np.asarray(self.garment_faces, np.int64)
-        w, tris = _lattice(self.level)
-        m = len(w)
-        vid = np.broadcast_to(f[:, None, :], (len(f), m, 3))
-        wt = np.broadcast_to(w[None], (len(f), m, 3))
-        # a lattice point is the same on every face that shares it: key = its (vertex, weight) pairs, sorted
-        big = np.iinfo(np.int64).max
-        vk = np.where(wt > 0, vid, big)
-        order = np.argsort(vk, axis=2, kind="stable")
-        key = np.concatenate([np.take_along_axis(vk, order, 2), np.take_along_axis(wt, order, 2)], axis=2)
-        _, first, inverse = np.unique(key.reshape(-1, 6), axis=0, return_index=True, return_inverse=True)
-        inverse = inverse.reshape(-1)
-        face = (first // m).astype(np.int64)
-        bary = w[first % m].astype(np.float64) / self.level
-        corner = np.arange(len(f))[:, None, None] * m + tris[None]  # (F, level^2, 3) per-face lattice indices
-        faces = inverse[corner].reshape(-1, 3)
-        parent = np.repeat(np.arange(len(f)), len(tris))
-        fuv = np.asarray(self.garment_uv, np.float64)[np.asarray(self.garment_face_uv, np.int64)]  # (F, 3, 2)
-        uv = np.einsum("mk,fkd->fmd", w / self.level, fuv).reshape(-1, 2).astype(np.float32)
-        return face, bary, faces, corner.reshape(-1, 3), uv, parent
-
-    @property
-    def face(self) -> np.ndarray:
-        """(N,) parent garment face of each fine vertex."""
-        return self._topology[0]
-
-    @property
-    def bary(self) -> np.ndarray:
-        """(N, 3) barycentrics of each fine vertex in its parent face."""
-        return self._topology[1]
-
-    @property
-    def faces(self) -> np.ndarray:
-        """(F * level^2, 3) fine triangles (oriented like their parents)."""
-        return self._topology[2]
-
-    @property
-    def parent_face(self) -> np.ndarray:
-        """(F * level^2,) garment face of each fine triangle."""
-        return self._topology[5]
-
-    def vertices(self, garment_vertices: np.ndarray) -> np.ndarray:
-        """(N, 3) fine vertices on the garment posed at ``garment_vertices``."""
-        return embedded_points(garment_vertices, np.asarray(self.garment_faces, np.int64), self.face, self.bary,
-                               self.offset)
-
-    def mesh(self, garment_vertices: np.ndarray, name: str = "garment_detail") -> Mesh:
-        """The fine surface as a :class:`Mesh` with per-corner UVs in the garment's atlas (face label 2)."""
-        _, _, faces, face_uv, uv, _ = self._topology
-        return Mesh(self.vertices(garment_vertices), faces, uv, face_uv, np.full(len(faces), 2, np.int32), name)
 
 
 # ------------------------------------------------------------------------------------------ height field

@@ -1,5 +1,13 @@
-"""Ground-truth fabrics: BRDF parameters, procedural base-colour textures, a weave normal map, and short
-fibres standing off the surface (detail a coarse mesh cannot hold).
+"""Ground-truth fabrics: procedural base-colour textures, a weave normal map, and fibres off the surface.
+
+Two families (docs/synth.md, "Fabrics"):
+
+- **fibre truths** (``cotton``, ``fleece``, ``knit``, ``velvet``, ``satin``): a Lambertian cloth surface
+  under a dense layer of loose fibres (:class:`HairLayer`), curves shaded by a fibre scattering model (Mitsuba's
+  ``hair`` BSDF, absorption from the base colour). Their sheen comes from the fibres' geometry and
+  scattering, so no BRDF the material fit can choose represents them exactly (``appearance`` 'hair-fibres').
+- **in-family controls** (``*-sheen``, ``lambertian``): the surface BRDF alone (``pgc-sheen`` or
+  ``lambertian``, the models the fit chooses from), with a few sparse fibres shaded by the same BRDF.
 
 Patterns are functions of the garment's rest-pose position (metres), baked into its UV atlas, so stripes
 and checks run straight across UV seams. Colours are linear RGB. BRDF parameter names are those of
@@ -8,18 +16,24 @@ and checks run straight across UV seams. Colours are linear RGB. BRDF parameter 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from pgc.errors import PGCDataError
-from pgc.synth.embed import embedded_points
+from pgc.geometry.embedded import embedded_points
+from pgc.geometry.fibres import Fibres, HairLayer, face_frames
 from pgc.types import Material, Mesh
+
+
+HAIR_FIBRES = "hair-fibres"
+"""The ``appearance`` of the fibre truths (ground_truth/material.json)."""
 
 
 @dataclass(frozen=True)
 class Fabric:
-    """A fabric preset."""
+    """A fabric preset: a fibre truth (``hair`` set, over a Lambertian surface) or an in-family control."""
 
     name: str
     brdf: str
@@ -35,28 +49,70 @@ class Fabric:
     """Fibres per square metre of garment (0 = none)."""
     fibre_length: float = 0.006
     fibre_radius: float = 0.0003
+    hair: HairLayer | None = None
+    """The fibre layer of a fibre truth (then ``brdf`` is the Lambertian surface under it)."""
 
+    @property
+    def appearance(self) -> str:
+        """What renders the fabric (:func:`appearance`)."""
+        return appearance(self.brdf, self.hair)
+
+
+def appearance(brdf: str, hair: HairLayer | None) -> str:
+    """The name of what renders a garment: 'hair-fibres' for a fibre layer (over the surface BRDF ``brdf``),
+    else '<brdf> (in-family control)'."""
+    return HAIR_FIBRES if hair is not None else f"{brdf} (in-family control)"
+
+
+_RAD = math.pi / 180.0
 
 FABRICS: dict[str, Fabric] = {
-    "cotton": Fabric("cotton", "pgc-sheen", {"roughness": 0.9, "sheen_color": [0.06, 0.06, 0.06],
-                                            "sheen_roughness": 0.6},
-                     "stripes+logo", ((0.70, 0.69, 0.66), (0.03, 0.05, 0.16), (0.62, 0.05, 0.04)),
-                     weave_period=0.003, weave_depth=0.25),
-    "fleece": Fabric("fleece", "pgc-sheen", {"roughness": 0.8, "sheen_color": [0.35, 0.36, 0.35],
-                                            "sheen_roughness": 0.45},
-                     "heather", ((0.10, 0.20, 0.11), (0.16, 0.27, 0.15)), weave_period=0.005, weave_depth=0.2,
-                     fibre_density=2500.0, fibre_length=0.007, fibre_radius=0.0004),
-    "knit": Fabric("knit", "pgc-sheen", {"roughness": 0.85, "sheen_color": [0.25, 0.22, 0.2],
-                                        "sheen_roughness": 0.35},
-                   "knit", ((0.28, 0.03, 0.05), (0.62, 0.50, 0.34)), weave_period=0.006, weave_depth=0.5,
-                   fibre_density=1200.0, fibre_length=0.005, fibre_radius=0.0003),
-    "rib-knit": Fabric("rib-knit", "pgc-sheen", {"roughness": 0.85, "sheen_color": [0.22, 0.2, 0.18],
-                                                "sheen_roughness": 0.4},
-                       "heather", ((0.50, 0.40, 0.29), (0.60, 0.50, 0.37)), weave_period=0.004, weave_depth=0.3,
-                       fibre_density=1200.0, fibre_length=0.006, fibre_radius=0.0003),
-    "satin-like": Fabric("satin-like", "pgc-sheen", {"roughness": 0.4, "sheen_color": [0.85, 0.83, 0.78],
-                                                    "sheen_roughness": 0.22},
-                         "checks", ((0.04, 0.09, 0.32), (0.02, 0.20, 0.21)), weave_period=0.002, weave_depth=0.1),
+    # fibre truths: a Lambertian surface under fibres (cover = 2 r L density; see docs/synth.md)
+    "cotton": Fabric("cotton", "lambertian", {}, "stripes+logo",
+                     ((0.70, 0.69, 0.66), (0.03, 0.05, 0.16), (0.62, 0.05, 0.04)), weave_period=0.003,
+                     weave_depth=0.25,
+                     hair=HairLayer(density=500_000.0, length=0.004, radius=0.0001, rise=(35 * _RAD, 65 * _RAD),
+                                    lie=(75 * _RAD, 88 * _RAD), longitudinal_roughness=0.35,
+                                    azimuthal_roughness=0.7)),
+    "fleece": Fabric("fleece", "lambertian", {}, "heather", ((0.10, 0.20, 0.11), (0.16, 0.27, 0.15)),
+                     weave_period=0.005, weave_depth=0.2,
+                     hair=HairLayer(density=700_000.0, length=0.007, radius=0.0001, rise=(15 * _RAD, 60 * _RAD),
+                                    lie=(50 * _RAD, 88 * _RAD), longitudinal_roughness=0.3,
+                                    azimuthal_roughness=0.6)),
+    "knit": Fabric("knit", "lambertian", {}, "knit", ((0.28, 0.03, 0.05), (0.62, 0.50, 0.34)),
+                   weave_period=0.006, weave_depth=0.5,
+                   hair=HairLayer(density=600_000.0, length=0.005, radius=0.0001, rise=(30 * _RAD, 60 * _RAD),
+                                  lie=(65 * _RAD, 88 * _RAD), longitudinal_roughness=0.3,
+                                  azimuthal_roughness=0.6)),
+    "velvet": Fabric("velvet", "lambertian", {}, "solid", ((0.22, 0.02, 0.06),), weave_depth=0.0,
+                     hair=HairLayer(density=800_000.0, length=0.002, radius=0.0002, rise=(3 * _RAD, 20 * _RAD),
+                                    lie=(5 * _RAD, 30 * _RAD), longitudinal_roughness=0.25,
+                                    azimuthal_roughness=0.5, segments=2)),
+    "satin": Fabric("satin", "lambertian", {}, "checks", ((0.04, 0.09, 0.32), (0.02, 0.20, 0.21)),
+                    weave_period=0.002, weave_depth=0.1,
+                    hair=HairLayer(density=600_000.0, length=0.008, radius=0.00008, rise=(70 * _RAD, 80 * _RAD),
+                                   lie=(84 * _RAD, 89 * _RAD), longitudinal_roughness=0.15,
+                                   azimuthal_roughness=0.3, alignment=10 * _RAD)),
+    # in-family controls: the BRDFs the material fit chooses from
+    "cotton-sheen": Fabric("cotton-sheen", "pgc-sheen", {"roughness": 0.9, "sheen_color": [0.06, 0.06, 0.06],
+                                                        "sheen_roughness": 0.6},
+                           "stripes+logo", ((0.70, 0.69, 0.66), (0.03, 0.05, 0.16), (0.62, 0.05, 0.04)),
+                           weave_period=0.003, weave_depth=0.25),
+    "fleece-sheen": Fabric("fleece-sheen", "pgc-sheen", {"roughness": 0.8, "sheen_color": [0.35, 0.36, 0.35],
+                                                        "sheen_roughness": 0.45},
+                           "heather", ((0.10, 0.20, 0.11), (0.16, 0.27, 0.15)), weave_period=0.005,
+                           weave_depth=0.2, fibre_density=2500.0, fibre_length=0.007, fibre_radius=0.0004),
+    "knit-sheen": Fabric("knit-sheen", "pgc-sheen", {"roughness": 0.85, "sheen_color": [0.25, 0.22, 0.2],
+                                                    "sheen_roughness": 0.35},
+                         "knit", ((0.28, 0.03, 0.05), (0.62, 0.50, 0.34)), weave_period=0.006, weave_depth=0.5,
+                         fibre_density=1200.0, fibre_length=0.005, fibre_radius=0.0003),
+    "rib-knit-sheen": Fabric("rib-knit-sheen", "pgc-sheen", {"roughness": 0.85, "sheen_color": [0.22, 0.2, 0.18],
+                                                            "sheen_roughness": 0.4},
+                             "heather", ((0.50, 0.40, 0.29), (0.60, 0.50, 0.37)), weave_period=0.004,
+                             weave_depth=0.3, fibre_density=1200.0, fibre_length=0.006, fibre_radius=0.0003),
+    "satin-sheen": Fabric("satin-sheen", "pgc-sheen", {"roughness": 0.4, "sheen_color": [0.85, 0.83, 0.78],
+                                                      "sheen_roughness": 0.22},
+                          "checks", ((0.04, 0.09, 0.32), (0.02, 0.20, 0.21)), weave_period=0.002, weave_depth=0.1),
     "lambertian": Fabric("lambertian", "lambertian", {}, "checks", ((0.60, 0.26, 0.05), (0.60, 0.60, 0.58)),
                          weave_depth=0.0),
 }
@@ -208,52 +264,72 @@ def make_material(fabric: Fabric, garment: Mesh, size: int, seed: int) -> tuple[
 # ---------------------------------------------------------------------------------------------- fibres
 
 
-@dataclass
-class Fibres:
-    """Short fibres rooted on garment faces; they follow any deformation of the garment."""
-
-    face: np.ndarray
-    """(N,) root face index."""
-    bary: np.ndarray
-    """(N, 3) barycentric root position."""
-    direction: np.ndarray
-    """(N, K - 1, 3) segment directions in the local (tangent, bitangent, normal) frame of the face."""
-    length: float
-    radius: float
-    color: np.ndarray
-    """(3,) linear RGB base colour of the fibres."""
-    offset: np.ndarray | None = None
-    """(N,) root offset along the interpolated garment normal, metres (roots on a detail relief)."""
-
-    def control_points(self, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-        """(N, K, 3) polyline control points on a garment with ``vertices`` (its rest or a deformed pose)."""
-        v = vertices[faces[self.face]]
-        root = embedded_points(vertices, faces, self.face, self.bary, self.offset)
-        e1 = v[:, 1] - v[:, 0]
-        n = np.cross(e1, v[:, 2] - v[:, 0])
-        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-20)
-        t = e1 / np.maximum(np.linalg.norm(e1, axis=1, keepdims=True), 1e-20)
-        b = np.cross(n, t)
-        frame = np.stack([t, b, n], axis=1)  # (N, 3, 3) rows: tangent, bitangent, normal
-        steps = np.einsum("nsk,nkd->nsd", self.direction, frame) * (self.length / self.direction.shape[1])
-        return np.concatenate([root[:, None], root[:, None] + np.cumsum(steps, axis=1)], axis=1)
-
-
-def make_fibres(fabric: Fabric, garment: Mesh, material: Material, seed: int, scale: float = 1.0) -> Fibres | None:
-    """Fibres of ``fabric`` scattered uniformly over ``garment`` (``scale`` multiplies the density);
-    None for fabrics without fibres. Each fibre leaves the surface steeply and curls over."""
-    count = int(round(fabric.fibre_density * scale * garment.face_areas().sum()))
-    if count == 0:
-        return None
-    rng = np.random.default_rng(seed)
+def _roots(garment: Mesh, count: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """``count`` points uniform over ``garment``'s area: face indices (N,) and barycentrics (N, 3)."""
     areas = garment.face_areas()
     face = rng.choice(len(areas), size=count, p=areas / areas.sum())
     r1, r2 = rng.random(count), rng.random(count)
     s = np.sqrt(r1)
-    bary = np.stack([1 - s, s * (1 - r2), s * r2], axis=1)
+    return face, np.stack([1 - s, s * (1 - r2), s * r2], axis=1)
+
+
+def _directions(tilt: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """Unit vectors (..., 3) in a face frame at angle ``tilt`` from the normal and azimuth ``phi``."""
+    return np.stack([np.sin(tilt) * np.cos(phi), np.sin(tilt) * np.sin(phi), np.cos(tilt)], axis=-1)
+
+
+def make_fibres(fabric: Fabric, garment: Mesh, material: Material, seed: int, scale: float = 1.0) -> Fibres | None:
+    """Fibres of ``fabric`` scattered uniformly over ``garment`` (``scale`` multiplies the density);
+    None for fabrics without fibres. A fibre truth's layer follows :class:`HairLayer`; a control's sparse
+    fibres leave the surface steeply and curl over."""
+    if fabric.hair is not None:
+        return _hair_fibres(fabric, garment, material, seed, scale)
+    count = int(round(fabric.fibre_density * scale * garment.face_areas().sum()))
+    if count == 0:
+        return None
+    rng = np.random.default_rng(seed)
+    face, bary = _roots(garment, count, rng)
     phi = rng.uniform(0, 2 * np.pi, count)
     tilt = np.stack([rng.uniform(0.3, 0.7, count), rng.uniform(0.9, 1.4, count)], axis=1)  # rad from normal
-    direction = np.stack([np.sin(tilt) * np.cos(phi)[:, None], np.sin(tilt) * np.sin(phi)[:, None],
-                          np.cos(tilt)], axis=-1)
+    direction = _directions(tilt, phi[:, None])
     color = np.asarray(material.base_color, np.float64).reshape(-1, 3).mean(axis=0) * 1.1
     return Fibres(face, bary, direction, fabric.fibre_length, fabric.fibre_radius, np.clip(color, 0, 1))
+
+
+def _hair_fibres(fabric: Fabric, garment: Mesh, material: Material, seed: int, scale: float) -> Fibres | None:
+    """The fibre layer of a fibre truth: roots, directions (float32) and colours grouped by the nearest of the
+    fabric's colours (one scattering model per group)."""
+    from pgc.texture.sample import sample_uv
+
+    layer = fabric.hair
+    count = int(round(layer.density * scale * garment.face_areas().sum()))
+    if count == 0:
+        return None
+    rng = np.random.default_rng(seed)
+    face, bary = _roots(garment, count, rng)
+    if layer.alignment > 0:
+        warp = face_frames(garment.vertices, garment.faces, face) @ np.array([0.0, -1.0, 0.0])
+        phi = (np.arctan2(warp[:, 1], warp[:, 0]) + rng.normal(0.0, layer.alignment, count)
+               + np.pi * (rng.random(count) < 0.5))
+        wander = np.zeros((count, layer.segments))
+    else:
+        phi = rng.uniform(0, 2 * np.pi, count)
+        wander = np.cumsum(rng.normal(0.0, 0.15, (count, layer.segments)), axis=1)  # a slight curl
+    tilt = np.empty((count, layer.segments))
+    tilt[:, 0] = rng.uniform(*layer.rise, count)
+    tilt[:, 1:] = rng.uniform(*layer.lie, count)[:, None] + rng.normal(0.0, 0.03, (count, layer.segments - 1))
+    direction = _directions(np.clip(tilt, 0.0, 0.5 * np.pi), phi[:, None] + wander).astype(np.float32)
+    if material.base_color is not None:
+        uv = np.einsum("nk,nkd->nd", bary, np.asarray(garment.uv, np.float64)[garment.face_uv[face]])
+        rgb = sample_uv(np.asarray(material.base_color, np.float64), uv)
+    else:
+        rgb = np.broadcast_to(np.asarray(material.params["base_color"], np.float64), (count, 3))
+    palette = np.asarray(fabric.colors, np.float64)
+    group = np.argmin(((rgb[:, None] - palette[None]) ** 2).sum(axis=-1), axis=1)
+    used = np.unique(group)
+    group = np.searchsorted(used, group)
+    palette = np.stack([rgb[group == g].mean(axis=0) for g in range(len(used))])
+    color = np.bincount(group, minlength=len(used)) @ palette / count
+    return Fibres(face.astype(np.int32), bary.astype(np.float32), direction, layer.length, layer.radius,
+                  np.clip(color, 0, 1), hair=layer, group=group.astype(np.int32),
+                  palette=np.clip(palette, 0, 1).astype(np.float32))

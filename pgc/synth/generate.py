@@ -48,8 +48,9 @@ class SynthPreset:
     (benchmarks/bench_synth.py); its spp must be a power of 4."""
     garment: str = "tshirt"
     """Garment kind (:data:`pgc.synth.garments` names: tshirt, dress)."""
-    fabric: str = "cotton"
-    """Fabric preset (:data:`pgc.synth.fabrics.FABRICS`)."""
+    fabric: str = "cotton-sheen"
+    """Fabric preset (:data:`pgc.synth.fabrics.FABRICS`): the presets keep the pgc-sheen cotton (an in-family
+    control), as a fibre truth costs 2.7-4.9 times its render time (docs/synth.md, "Fibre truths")."""
     framing: str = "body"
     """'body': the whole body fills the views; 'garment': the same dome cameras zoom onto the garment (its
     bounding sphere times ``GARMENT_FRAME_MARGIN``, room for the motions), so its fabric takes the pixels."""
@@ -74,7 +75,7 @@ PRESETS: dict[str, SynthPreset] = {
     "large": SynthPreset(views=64, resolution=1024, body_edge=0.015, garment_edge=0.012, texture=2048, spp=64,
                          gt_samples=4, fibre_scale=2.0, envmap_height=256),
     "knit": SynthPreset(views=32, resolution=320, body_edge=0.022, garment_edge=0.02, texture=1024, spp=64,
-                        gt_samples=4, fibre_scale=20.0, fabric="rib-knit", framing="garment", detail="relief",
+                        gt_samples=4, fibre_scale=20.0, fabric="rib-knit-sheen", framing="garment", detail="relief",
                         fit="resting", looseness=0.012),
 }
 

@@ -6,10 +6,12 @@ Layout::
     body.obj              body mesh in the capture A-pose (face label 1)
     garment.obj           garment mesh with UVs (face label 2)
     full.ply              body + garment in one mesh with per-face labels (what a reconstructor should find)
-    material.json         BRDF name and parameters (linear RGB), fabric preset
+    material.json         appearance ('hair-fibres', or '<brdf> (in-family control)'), the surface BRDF under
+                          it (name, parameters; linear RGB), the fibre layer's parameters, fabric preset
     base_color.exr        base-colour texture (linear RGB, rows from v = 1 down to v = 0); base_color.png preview
     normal_map.exr        tangent-space weave normal map, encoded (n + 1) / 2 (absent for flat fabrics)
-    fibres.npz            fibres: root face, barycentrics, local directions, length, radius, colour (root offset)
+    fibres.npz            fibres: root face, barycentrics, local directions, length, radius, colour (root offset;
+                          fibre truths: colour group per fibre and the group colours)
     detail.npz            near-field detail embedded in garment.obj: subdivision level, per fine vertex offset
     light.json            the capture light (constant RGB radiance)
     envmaps/<kind>.exr    environment maps for relighting ground truth
@@ -26,14 +28,15 @@ from pathlib import Path
 import numpy as np
 
 from pgc.errors import PGCDataError
+from pgc.geometry.embedded import DetailSurface
+from pgc.geometry.fibres import Fibres, HairLayer, hair_absorption
 from pgc.io import images as imgio
 from pgc.io.atomic import atomic_open, write_json
 from pgc.io.limits import read_json
 from pgc.io.mesh import read_mesh, write_mesh
+from pgc.roles.scene_renderer import SKIN_ALBEDO, SceneGeometry
 from pgc.synth.body import BodyModel
-from pgc.synth.detail import DetailSurface
-from pgc.synth.fabrics import Fibres
-from pgc.synth.render import SKIN_ALBEDO, SceneGeometry
+from pgc.synth.fabrics import appearance
 from pgc.synth.skeleton import BodyShape
 from pgc.types import Light, Material, Mesh
 
@@ -81,11 +84,7 @@ def write_ground_truth(root: str | os.PathLike, gt: GroundTruth, body: BodyModel
                 np.concatenate([gt.body.faces, gt.garment.faces + len(gt.body.vertices)]),
                 face_labels=np.concatenate([gt.body.face_labels, gt.garment.face_labels]), name="full")
     write_mesh(out / "full.ply", full)
-    params = {k: v for k, v in gt.material.params.items()}
-    write_json(out / "material.json", {"brdf": gt.material.brdf, "params": params,
-                                       "fabric": manifest.get("fabric"), "base_color": "base_color.exr",
-                                       "normal_map": None if gt.normal_map is None else "normal_map.exr",
-                                       "skin_albedo": list(gt.skin_albedo)})
+    write_json(out / "material.json", material_record(gt, manifest.get("fabric")))
     imgio.write_exr(out / "base_color.exr", gt.material.base_color)
     imgio.write_image(out / "base_color.png", gt.material.base_color)
     if gt.normal_map is not None:
@@ -93,6 +92,8 @@ def write_ground_truth(root: str | os.PathLike, gt: GroundTruth, body: BodyModel
     if gt.fibres is not None:
         f = gt.fibres
         extra = {} if f.offset is None else {"offset": f.offset}
+        if f.hair is not None:
+            extra.update(group=f.group, palette=f.palette)
         _save_npz(out / "fibres.npz", face=f.face, bary=f.bary, direction=f.direction, length=np.float64(f.length),
                   radius=np.float64(f.radius), color=f.color, **extra)
     if gt.detail is not None:
@@ -109,6 +110,23 @@ def write_ground_truth(root: str | os.PathLike, gt: GroundTruth, body: BodyModel
     return out
 
 
+def material_record(gt: GroundTruth, fabric: str | None) -> dict:
+    """The content of material.json: ``appearance`` names what renders the garment (never a fitted BRDF's
+    name for a fibre truth), ``surface`` the BRDF of the cloth surface (under the fibres of a fibre truth),
+    ``fibre_layer`` the fibres' scattering model with its colours and absorption (fibre truths only)."""
+    f = gt.fibres
+    layer = None
+    if f is not None and f.hair is not None:
+        palette = np.asarray(f.palette, np.float64)
+        layer = {"model": "mitsuba hair (Chiang et al. 2016) on linear curves", **f.hair.record(),
+                 "count": len(f.face), "colors": palette.tolist(),
+                 "sigma_a": hair_absorption(palette, f.hair.azimuthal_roughness).tolist()}
+    return {"appearance": appearance(gt.material.brdf, None if f is None else f.hair),
+            "surface": {"brdf": gt.material.brdf, "params": dict(gt.material.params)},
+            "fibre_layer": layer, "fabric": fabric, "base_color": "base_color.exr",
+            "normal_map": None if gt.normal_map is None else "normal_map.exr", "skin_albedo": list(gt.skin_albedo)}
+
+
 def read_ground_truth(root: str | os.PathLike) -> GroundTruth:
     """Read the ground truth of a synthetic capture (``root`` is the capture folder or its ground_truth/)."""
     root = Path(root)
@@ -118,13 +136,19 @@ def read_ground_truth(root: str | os.PathLike) -> GroundTruth:
                            "make one with 'pgc synth OUT'")
     manifest = read_json(gt_dir / "scene.json", "ground-truth scene.json")
     mat = read_json(gt_dir / "material.json", "ground-truth material.json")
-    material = Material(mat["brdf"], mat["params"], imgio.read_exr(gt_dir / mat["base_color"]))
+    if "appearance" not in mat or "surface" not in mat:
+        raise PGCDataError(f"{gt_dir / 'material.json'}: no 'appearance' and 'surface' (written by an older "
+                           "'pgc synth'); delete the capture folder and generate it again")
+    material = Material(mat["surface"]["brdf"], mat["surface"]["params"], imgio.read_exr(gt_dir / mat["base_color"]))
     normal_map = imgio.read_exr(gt_dir / mat["normal_map"]) if mat.get("normal_map") else None
     fibres = None
     if (gt_dir / "fibres.npz").is_file():
         z = np.load(gt_dir / "fibres.npz")
+        layer = mat.get("fibre_layer")
         fibres = Fibres(z["face"], z["bary"], z["direction"], float(z["length"]), float(z["radius"]), z["color"],
-                        z["offset"] if "offset" in z else None)
+                        z["offset"] if "offset" in z else None,
+                        None if layer is None else HairLayer.from_record(layer),
+                        z["group"] if layer is not None else None, z["palette"] if layer is not None else None)
     light_doc = read_json(gt_dir / "light.json", "ground-truth light.json")
     garment = read_mesh(gt_dir / "garment.obj")
     detail = None

@@ -12,24 +12,10 @@ from __future__ import annotations
 import numpy as np
 
 from pgc.errors import PGCDataError
-from pgc.types import Camera, Light
+from pgc.types import Camera, Light, look_at_pose
 
 DEFAULT_RADIANCE = (1.0, 0.96, 0.9)
 """The constant capture light: a slightly warm white of known RGB radiance."""
-
-
-def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray = np.array([0.0, 1.0, 0.0])
-            ) -> tuple[np.ndarray, np.ndarray]:
-    """OpenCV world-to-camera (R, t) of a camera at ``eye`` looking at ``target`` with world ``up`` up."""
-    z = np.asarray(target, float) - np.asarray(eye, float)
-    z /= np.linalg.norm(z)
-    x = np.cross(z, up)
-    if np.linalg.norm(x) < 1e-8:
-        x = np.cross(z, [0.0, 0.0, 1.0])
-    x /= np.linalg.norm(x)
-    y = np.cross(z, x)  # image down
-    R = np.stack([x, y, z])
-    return R, -R @ np.asarray(eye, float)
 
 
 def dome_cameras(count: int = 32, width: int = 256, height: int = 256, center: tuple[float, float, float] = (0, 0.9, 0),
@@ -58,7 +44,7 @@ def dome_cameras(count: int = 32, width: int = 256, height: int = 256, center: t
             az = 2 * np.pi * (k + 0.5 * (ring % 2)) / n + rng.uniform(-0.03, 0.03)
             el = np.deg2rad(elev) + rng.uniform(-0.02, 0.02)
             eye = center + distance * np.array([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)])
-            R, t = look_at(eye, center)
+            R, t = look_at_pose(eye, center)
             cams.append(Camera(K, R, t, width, height, name=f"cam{len(cams):03d}"))
     return cams
 

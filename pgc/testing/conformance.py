@@ -479,7 +479,7 @@ class SceneRendererConformance(_Suite):
 
     @pytest.fixture
     def geometry(self, camera):
-        from pgc.synth.render import SceneGeometry
+        from pgc.roles.scene_renderer import SceneGeometry
         from pgc.types import Material, Mesh
 
         pix = np.array([[u, v, 1.0] for u, v in self.CORNERS])
@@ -501,8 +501,7 @@ class SceneRendererConformance(_Suite):
         return inside.mean(axis=2)
 
     def test_ground_truth_layers_are_exact(self, implementation, camera, geometry):
-        from pgc.synth.render import LABEL_GARMENT
-        from pgc.types import Light
+        from pgc.types import GARMENT_LABEL, Light
 
         scene, labels = implementation.build_scene(geometry, Light(radiance=np.array(self.RADIANCE)))
         layers = implementation.ground_truth_layers(scene, labels, geometry, camera, self.SAMPLES)
@@ -521,7 +520,7 @@ class SceneRendererConformance(_Suite):
         np.testing.assert_array_equal(layers["depth"][~covered], 0.0)
         np.testing.assert_allclose(layers["albedo"][covered], self.ALBEDO, rtol=1e-6)
         np.testing.assert_array_equal(layers["albedo"][~covered], 0.0)
-        np.testing.assert_array_equal(layers["segmentation"][expected > 0.55], LABEL_GARMENT)
+        np.testing.assert_array_equal(layers["segmentation"][expected > 0.55], GARMENT_LABEL)
         np.testing.assert_array_equal(layers["segmentation"][expected < 0.45], 0)
 
     def test_color_is_albedo_times_radiance(self, implementation, camera, geometry):
@@ -558,47 +557,6 @@ class SceneRendererConformance(_Suite):
 # ------------------------------------------------------------------------------------------- calibrator
 
 
-def textured_box_capture(views: int = 8, size: int = 192):
-    """A capture of a 0.8 m cube with a multi-scale solid noise texture (SIFT finds blobs on it) from
-    ``views`` cameras 20 degrees apart on an arc 2.2 m from its centre, with exact poses."""
-    from pgc.geometry.raster import rasterize
-    from pgc.geometry.testscene import look_at
-    from pgc.types import Capture, Mesh, View
-
-    n, half = 8, 0.4
-    g = np.linspace(-half, half, n + 1)
-    vertices, faces = [], []
-    for axis in range(3):
-        for sign in (-1.0, 1.0):
-            u, v = np.meshgrid(g, g, indexing="ij")
-            p = np.zeros(u.shape + (3,))
-            p[..., axis], p[..., (axis + 1) % 3], p[..., (axis + 2) % 3] = sign * half, u, v
-            idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1) + sum(len(x) for x in vertices)
-            q = np.stack([idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]], -1).reshape(-1, 4)
-            f = np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])
-            faces.append(f if sign > 0 else f[:, ::-1])
-            vertices.append(p.reshape(-1, 3))
-    box = Mesh(np.concatenate(vertices), np.concatenate(faces))
-    rng = np.random.default_rng(0)
-    freq = rng.normal(size=(3, 16, 3))
-    freq *= (2 * np.pi / rng.uniform(0.04, 0.15, size=(3, 16)))[..., None] / np.linalg.norm(freq, axis=-1,
-                                                                                             keepdims=True)
-    phase = rng.uniform(0, 2 * np.pi, (3, 16))
-    out = []
-    for i in range(views):
-        a, e = np.radians(20.0 * i), np.radians(25.0)
-        centre = 2.2 * np.array([np.cos(e) * np.sin(a), np.sin(e), np.cos(e) * np.cos(a)])
-        cam = look_at(centre, np.zeros(3), size, size, 40.0, f"v{i}")
-        r = rasterize(cam, box.vertices, box.faces)
-        hit = r.face_id >= 0
-        pts = np.einsum("nk,nkj->nj", r.bary[hit], box.vertices[box.faces[r.face_id[hit]]])
-        image = np.full((size, size, 3), 0.5, np.float32)
-        image[hit] = np.stack([0.5 + 0.45 * np.tanh(4 * np.sin(pts @ freq[c].T + phase[c]).mean(1))
-                               for c in range(3)], -1)
-        out.append(View(cam, image, hit.astype(np.float32), hit.astype(np.uint8)))
-    return Capture(out)
-
-
 class CalibratorConformance(_Suite):
     """Contract of ``pgc.roles.calibrator.Calibrator`` on a textured cube seen by 8 exactly posed cameras:
     the output has the same views (names, order, images, intrinsics), finite poses that stay within 2
@@ -610,6 +568,8 @@ class CalibratorConformance(_Suite):
     @pytest.fixture(scope="class")
     @classmethod
     def capture(cls):
+        from pgc.testing.capture_scenes import textured_box_capture
+
         return textured_box_capture()
 
     def test_same_views_and_finite_poses_near_the_truth(self, implementation, capture):

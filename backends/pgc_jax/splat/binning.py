@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-ALPHA_MIN = 1.0 / 255.0
+from pgc.splats.projection import ALPHA_MIN
 
 
 @dataclass(frozen=True)

@@ -16,16 +16,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from pgc.io.images import linear_to_srgb
+from pgc.metrics.ssim import mean_ssim
 from pgc.roles.splat_renderer import FitSplatsSettings
-from pgc.splats.binding import triangle_frames as np_triangle_frames
+from pgc.splats.binding import apply_frames, triangle_frames
 from pgc.splats.fused import DEFAULT_TILE
 from pgc.splats.sh import SH_C0
 from pgc.splats.fit import PARAMETERS, FitBackend, FitView, adam_update
 from pgc.types import Camera, GaussianSet, Mesh
-from pgc_jax.splat.binding import apply_frames
 from pgc_jax.splat.binning import Bins, bucket
 from pgc_jax.splat.fused import camera_bits, fused_render
-from pgc_jax.splat.losses import linear_to_srgb, ssim
 from pgc_jax.splat.render import CameraArrays, camera_arrays, make_bins, render_bound
 
 
@@ -110,7 +110,7 @@ def _train_step(params, adam, t, lrs, frames, parent, sh_mask, cam, background, 
         color, alpha = _render(p, frames, parent, ones, sh_mask, cam, background, bins, probe, width=width,
                                height=height, tile=tile, near=near, threads=threads)
         pred = linear_to_srgb(color)
-        loss = lambda_l1 * jnp.mean(jnp.abs(pred - target)) + (1.0 - lambda_l1) * (1.0 - ssim(pred, target))
+        loss = lambda_l1 * jnp.mean(jnp.abs(pred - target)) + (1.0 - lambda_l1) * (1.0 - mean_ssim(pred, target))
         surface = lambda_surface * jnp.mean(p["means"][:, 1] ** 2) if lambda_surface else 0.0
         fade = lambda_opacity * jnp.mean(jax.nn.sigmoid(p["opacity_logits"])) if lambda_opacity else 0.0
         return loss + lambda_mask * jnp.mean(band * jnp.abs(mask - alpha)) + surface + fade, pred
@@ -137,7 +137,7 @@ class JaxFitBackend(FitBackend):
 
     def start(self, initial: GaussianSet, mesh: Mesh) -> None:
         # fixed vertices: the frames come from the float64 numpy binding (exact degenerate-face rules)
-        self.frames = tuple(jnp.asarray(x, self.dtype) for x in np_triangle_frames(mesh.vertices, mesh.faces))
+        self.frames = tuple(jnp.asarray(x, self.dtype) for x in triangle_frames(mesh.vertices, mesh.faces))
         self.parent = jnp.asarray(initial.parent)
         self.params = {n: jnp.asarray(getattr(initial, n), self.dtype) for n in PARAMETERS}
         self.adam = {"m": {n: jnp.zeros_like(t) for n, t in self.params.items()},

@@ -24,6 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from pgc.splats import fused as kernel
+from pgc.splats.projection import expected_depth
 from pgc.types import Camera
 
 KEEP = 8
@@ -116,5 +117,4 @@ def fused_render(means, rotmats, scales, opacities, sh, cam, background, *, heig
     Gaussian arrays."""
     color, alpha, dsum = _render(means, rotmats, scales, opacities, sh, cam, background, height, width, count, tile,
                                  threads)
-    has = alpha > 0
-    return color, alpha, jnp.where(has, dsum / jnp.where(has, alpha, 1.0), 0.0)
+    return color, alpha, expected_depth(dsum, alpha)

@@ -1,7 +1,7 @@
 """Differentiable JAX rendering of world Gaussians: projection -> host binning -> jitted compositing.
 
 :func:`render_bound` is the pure, differentiable function (``jax.grad`` flows to every Gaussian parameter,
-and to mesh vertices when the inputs come from :func:`pgc_jax.splat.binding.bind`). It takes the chunk
+and to mesh vertices when the inputs come from :func:`pgc.splats.binding.bind_arrays`). It takes the chunk
 table of :func:`make_bins`, which is piecewise constant in the parameters and built once per view and
 parameter state (the standard 3DGS treatment of culling and sorting).
 """
@@ -15,9 +15,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from pgc.splats.projection import expected_depth, screen_space, view_colors
+from pgc.splats.quaternion import quat_to_rotmat
 from pgc.types import Camera
 from pgc_jax.splat.binning import Bins, bin_gaussians, binning_radius
-from pgc_jax.splat.project import project, quat_to_rotmat, view_colors
 from pgc_jax.splat.raster import composite
 
 
@@ -39,7 +40,7 @@ rotmats_of = jax.jit(quat_to_rotmat)
 
 @partial(jax.jit, static_argnames=("near",))
 def _footprints(means, rotmats, scales, opacities, cam: CameraArrays, near: float):
-    p = project(means, rotmats, scales, cam.K, cam.R, cam.t, near)
+    p = screen_space(means, rotmats, scales, cam.K, cam.R, cam.t, near)
     return p.mean2d, p.depth, p.valid, p.radius, p.lambda_max, jnp.where(p.valid, opacities * p.coverage, 0.0)
 
 
@@ -69,7 +70,7 @@ def render_bound(means, rotmats, scales, opacities, sh, cam: CameraArrays, backg
     Returns colour (H, W, 3) composited over the background, alpha (H, W) and expected depth (H, W)
     (0 where alpha is 0).
     """
-    p = project(means, rotmats, scales, cam.K, cam.R, cam.t, near)
+    p = screen_space(means, rotmats, scales, cam.K, cam.R, cam.t, near)
     colors = view_colors(means, sh, cam.center, sh_degree)
     if color_offset is not None:
         colors = colors + color_offset
@@ -77,9 +78,7 @@ def render_bound(means, rotmats, scales, opacities, sh, cam: CameraArrays, backg
     opac = jnp.where(p.valid, opacities * p.coverage, 0.0)
     img, alpha = composite(p.mean2d, p.conic, opac, p.radius, feats, gauss, tiles, first, width, height, tile)
     color = img[..., :3] + (1.0 - alpha)[..., None] * background
-    has = alpha > 0
-    depth = jnp.where(has, img[..., 3] / jnp.where(has, alpha, 1.0), 0.0)
-    return color, alpha, depth
+    return color, alpha, expected_depth(img[..., 3], alpha)
 
 
 def render_view(means, rotmats, scales, opacities, sh, camera: Camera, background, *, sh_degree: int,

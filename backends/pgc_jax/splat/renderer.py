@@ -41,16 +41,11 @@ class JaxSplatRenderer(SplatRenderer):
     @property
     def compositor(self) -> str:
         """'fused' or 'xla': the rendering path this instance uses."""
+        import jax
+
         from pgc.splats import fused
 
-        choice = self.options.compositor
-        if choice == "auto":
-            import jax
-
-            return "fused" if jax.default_backend() == "cpu" and fused.available() else "xla"
-        if choice == "fused":
-            fused.load()  # raises KernelUnavailable with the reason
-        return choice
+        return fused.render_path(self.options.compositor, "xla", host=jax.default_backend() == "cpu")
 
     @property
     def threads(self) -> int:

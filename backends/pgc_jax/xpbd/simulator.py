@@ -11,13 +11,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from pgc.arrays import ArrayOps, array_ops
 from pgc.sim.driver import Stepper, XPBDSimulator
-from pgc.sim.kernels import ArrayOps, FrameInput, Statics, StepSettings, advance_frame
+from pgc.sim.kernels import FrameInput, Statics, StepSettings, advance_frame
 from pgc.sim.model import ClothModel
 from pgc.sim.options import XPBDOptions
 
-JAX = ArrayOps(jnp, lambda a, idx, values: a.at[idx].add(values),
-               lambda n, body, carry: jax.lax.fori_loop(0, n, body, carry))
+JAX = array_ops("jax")
 
 
 def _advance(ops: ArrayOps, self_collision: bool, scalars: dict, statics: Statics, x: jax.Array, v: jax.Array,

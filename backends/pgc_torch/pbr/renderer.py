@@ -15,9 +15,9 @@ import math
 
 import numpy as np
 
+from pgc.arrays import array_ops
 from pgc.brdfs.maths import EVALUATORS
 from pgc.brdfs.parameters import PARAMETERS
-from pgc.brdfs.xp import namespace
 from pgc.errors import PGCDataError
 from pgc.roles.pbr_renderer import PBRRenderer
 from pgc.roles.splat_renderer import RenderOutput
@@ -76,7 +76,7 @@ class TorchPBRRenderer(PBRRenderer):
 
         if material.brdf not in EVALUATORS:
             raise PGCDataError(f"material.brdf '{material.brdf}' is not one of {sorted(EVALUATORS)}")
-        ops = namespace("torch")
+        ops = array_ops("torch")
         evaluate = EVALUATORS[material.brdf]
         params = {p.name: material.params.get(p.name, p.init[0] if p.size == 1 else list(p.init))
                   for p in PARAMETERS[material.brdf]}

@@ -1,7 +1,7 @@
 """The torch arrays of the splat fit: :class:`TorchFitBackend` for the loop of :mod:`pgc.splats.fit`.
 
-Parameters are float32 leaf tensors bound to the fixed face frames of the mesh (:mod:`.binding`); a step renders
-one view through the renderer's differentiable :meth:`rasterize`, takes the loss's gradient by autograd and
+Parameters are float32 leaf tensors bound to the fixed face frames of the mesh (:mod:`pgc.splats.binding`); a step
+renders one view through the renderer's differentiable :meth:`rasterize`, takes the loss's gradient by autograd and
 applies the shared Adam update. torch runs on one intra-op thread meanwhile (:func:`pgc_torch.threads.torch_threads`).
 """
 
@@ -13,14 +13,14 @@ from typing import Any, ContextManager, Sequence
 import numpy as np
 import torch
 
+from pgc.io.images import linear_to_srgb
+from pgc.metrics.ssim import mean_ssim
 from pgc.roles.splat_renderer import FitSplatsSettings
+from pgc.splats.binding import apply_frames, triangle_frames
 from pgc.splats.fit import ADAM_B1, ADAM_B2, ADAM_EPS, PARAMETERS, FitBackend, FitView
 from pgc.splats.sh import SH_C0
 from pgc.types import Camera, GaussianSet, Mesh
 from pgc_torch.threads import torch_threads
-
-from .binding import apply_frames, triangle_frames
-from .losses import linear_to_srgb, ssim
 
 
 @dataclass
@@ -73,7 +73,8 @@ class TorchFitBackend(FitBackend):
              s: FitSplatsSettings) -> tuple[torch.Tensor, torch.Tensor]:
         color, alpha, _ = self.renderer.rasterize(*self._world(), handle.camera, handle.background, degree)
         pred = linear_to_srgb(color)
-        loss = s.lambda_l1 * (pred - handle.target).abs().mean() + (1 - s.lambda_l1) * (1 - ssim(pred, handle.target))
+        loss = (s.lambda_l1 * (pred - handle.target).abs().mean()
+                + (1 - s.lambda_l1) * (1 - mean_ssim(pred, handle.target)))
         if handle.mask is not None and s.lambda_mask > 0:
             loss = loss + s.lambda_mask * (handle.band * (handle.mask - alpha).abs()).mean()
         if s.lambda_surface > 0:  # local column 1 is the triangle normal

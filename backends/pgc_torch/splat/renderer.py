@@ -10,31 +10,25 @@ from pgc.events import Reporter
 from pgc.roles.splat_renderer import FitSplatsSettings, RenderOutput, SplatFit, SplatRenderer
 from pgc.splats import fused as fused_kernel
 from pgc.splats.fit import fit_splats
+from pgc.splats.quaternion import quat_to_rotmat
 from pgc.types import Camera, Capture, Mesh, WorldGaussians
 
 from pgc_torch.specs_splat import TorchSplatOptions
 from pgc_torch.threads import torch_threads
 
-from . import kernel
-from .binding import quat_to_rotmat
 from .fit import TorchFitBackend
 from .rasterizer import rasterize
 
 
 class TorchSplatRenderer(SplatRenderer):
-    """EWA splatting in torch with a compiled OpenMP compositing kernel (pure-torch fallback)."""
+    """EWA splatting in torch: the fused compiled kernel, or pure torch where it does not build."""
 
     Options = TorchSplatOptions
 
     @property
     def compositor(self) -> str:
-        """'fused', 'cpp' or 'torch': the rendering path this instance uses."""
-        choice = self.options.compositor
-        if choice == "auto":
-            return "fused" if fused_kernel.available() else "cpp" if kernel.available() else "torch"
-        if choice in ("fused", "cpp"):
-            (fused_kernel if choice == "fused" else kernel).load()  # raises KernelUnavailable with the reason
-        return choice
+        """'fused' or 'torch': the rendering path this instance uses."""
+        return fused_kernel.render_path(self.options.compositor, "torch")
 
     @property
     def threads(self) -> int:

@@ -5,20 +5,14 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from pgc.arrays import array_ops
 from pgc.sim.driver import Stepper, XPBDSimulator
-from pgc.sim.kernels import (
-    ArrayOps,
-    FrameInput,
-    Statics,
-    StepSettings,
-    advance_frame,
-    python_loop,
-)
+from pgc.sim.kernels import FrameInput, Statics, StepSettings, advance_frame
 from pgc.sim.model import ClothModel
 from pgc.sim.options import XPBDOptions
 from pgc_torch.threads import torch_threads
 
-TORCH = ArrayOps(torch, lambda a, idx, values: a.index_add(0, idx, values), python_loop)
+TORCH = array_ops("torch")
 
 
 class TorchStepper(Stepper):

@@ -32,7 +32,7 @@ def pose_errors(cameras: list, truth: list) -> dict[str, float]:
 
 
 def bench(ctx: Context) -> list[dict[str, Any]]:
-    from pgc.testing.conformance import textured_box_capture
+    from pgc.testing.capture_scenes import textured_box_capture
 
     views, size = int(ctx.param("views", 8)), int(ctx.param("size", 192))
     degrees, metres = float(ctx.param("perturb_deg", 1.0)), float(ctx.param("perturb_m", 0.01))

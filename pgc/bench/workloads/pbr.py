@@ -21,7 +21,7 @@ MATERIAL = {"roughness": 0.8, "sheen_color": [0.6, 0.55, 0.35], "sheen_roughness
 
 def scene(size: int) -> tuple[Any, Any, Any, dict[str, Any]]:
     """(mesh, material, camera, lights by name) of the folded-sheet scene seen at ``size`` px."""
-    from pgc.brdfs.scenes import checker_texture, folded_sheet, ring_cameras
+    from pgc.testing.pbr_scenes import checker_texture, folded_sheet, ring_cameras
     from pgc.types import Light, Material
 
     env = np.tile(np.array([0.15, 0.2, 0.35], np.float32), (16, 32, 1))

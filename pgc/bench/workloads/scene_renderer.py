@@ -20,7 +20,7 @@ ALBEDO, RADIANCE, DEPTH = 0.5, (1.0, 0.8, 0.6), 2.0
 
 def triangle_scene(size: int) -> tuple[Any, Any, np.ndarray]:
     """(camera, geometry, fully-covered pixel mask) of a triangle covering about a third of a square image."""
-    from pgc.synth.render import SceneGeometry
+    from pgc.roles.scene_renderer import SceneGeometry
     from pgc.types import Camera, Material, Mesh
 
     camera = Camera(K=np.array([[1.6 * size, 0, size / 2], [0, 1.6 * size, size / 2], [0, 0, 1]]), R=np.eye(3),

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pgc.geometry.testscene import look_at
+from pgc.testing.capture_scenes import look_at
 from pgc.types import Camera, Mesh
 
 

@@ -1,10 +1,12 @@
-"""A small synthetic capture made from a labelled mesh: the scene of the reconstruction tests and a
-stand-in before the full generator (pgc.synth) exists.
+"""Small captures made in-process for tests and benchmarks (no generator, no path tracer).
 
-A body-like blob (torso, head, arms in an A-pose, legs; about 1.7 m tall, +Y up, feet at y = 0) with a
-'garment' band on the torso, a solid procedural texture (stripes and value noise of a few centimetres, so
-photo-consistency has texture), Lambertian shading under a fixed directional light plus ambient (view
-independent), rendered with 2x2 supersampling through cameras on a dome.
+:func:`make_capture`: a body-like blob (torso, head, arms in an A-pose, legs; about 1.7 m tall, +Y up, feet
+at y = 0) with a 'garment' band on the torso, a solid procedural texture (stripes and value noise of a few
+centimetres, so photo-consistency has texture), Lambertian shading under a fixed directional light plus
+ambient (view independent), rendered with 2x2 supersampling through cameras on a dome: the scene of the
+reconstruction and splat-fit tests.
+
+:func:`textured_box_capture`: a textured cube seen by exactly posed cameras (the calibrator's scene).
 """
 
 from __future__ import annotations
@@ -13,23 +15,17 @@ import numpy as np
 
 from pgc.geometry.raster import rasterize
 from pgc.geometry.surface_nets import surface_nets
-from pgc.types import Camera, Capture, Mesh, View
-
-LABELS = {0: "background", 1: "body", 2: "garment"}
+from pgc.types import BODY_LABEL, DEFAULT_LABELS, GARMENT_LABEL, Camera, Capture, Mesh, View, look_at_pose
 
 
 def look_at(center: np.ndarray, target: np.ndarray, width: int, height: int, fov_y_deg: float,
             name: str) -> Camera:
-    """An OpenCV camera at ``center`` looking at ``target`` with world +Y up."""
-    z = np.asarray(target, float) - np.asarray(center, float)
-    z /= np.linalg.norm(z)
-    x = np.cross(z, [0.0, 1.0, 0.0])
-    x /= np.linalg.norm(x)
-    y = np.cross(z, x)
-    R = np.stack([x, y, z])
+    """An OpenCV camera at ``center`` looking at ``target`` with world +Y up, ``fov_y_deg`` vertical field of
+    view and the principal point at the image centre."""
+    R, t = look_at_pose(center, target)
     f = 0.5 * height / np.tan(np.radians(fov_y_deg) / 2)
     K = np.array([[f, 0, width / 2], [0, f, height / 2], [0, 0, 1]])
-    return Camera(K, R, -R @ np.asarray(center, float), width, height, name)
+    return Camera(K, R, t, width, height, name)
 
 
 def dome_cameras(count: int, size: int = 128, radius: float = 3.0, target_y: float = 0.9,
@@ -82,7 +78,7 @@ def body_mesh(spacing: float = 0.015) -> Mesh:
     v, f = surface_nets(field, lo, spacing)
     c = v[f].mean(1)
     garment = (c[:, 1] > 0.95) & (c[:, 1] < 1.45) & (np.abs(c[:, 0]) < 0.24)
-    return Mesh(v, f, face_labels=np.where(garment, 2, 1), name="blob")
+    return Mesh(v, f, face_labels=np.where(garment, GARMENT_LABEL, BODY_LABEL), name="blob")
 
 
 def albedo(points: np.ndarray, labels: np.ndarray, seed: int = 0) -> np.ndarray:
@@ -95,7 +91,7 @@ def albedo(points: np.ndarray, labels: np.ndarray, seed: int = 0) -> np.ndarray:
     stripes = 0.5 + 0.5 * np.sign(np.sin(points[:, 1] * 2 * np.pi / 0.05))
     garment = np.array([0.15, 0.25, 0.6]) + 0.35 * stripes[:, None] * np.array([0.9, 0.8, 0.2])
     skin = np.array([0.55, 0.38, 0.3]) * np.ones((len(points), 1))
-    base = np.where((labels == 2)[:, None], garment, skin)
+    base = np.where((labels == GARMENT_LABEL)[:, None], garment, skin)
     return np.clip(base * (1.0 + 0.45 * noise[:, None]), 0.02, 1.0)
 
 
@@ -123,4 +119,42 @@ def render_view(mesh: Mesh, camera: Camera, background: float = 0.2, supersample
 def make_capture(mesh: Mesh | None = None, views: int = 16, size: int = 128) -> tuple[Capture, Mesh]:
     """A capture of ``mesh`` (default :func:`body_mesh`) from ``views`` dome cameras, and the mesh."""
     mesh = mesh if mesh is not None else body_mesh()
-    return Capture([render_view(mesh, cam) for cam in dome_cameras(views, size)], labels=dict(LABELS)), mesh
+    views_ = [render_view(mesh, cam) for cam in dome_cameras(views, size)]
+    return Capture(views_, labels=dict(DEFAULT_LABELS)), mesh
+
+
+def textured_box_capture(views: int = 8, size: int = 192) -> Capture:
+    """A capture of a 0.8 m cube with a multi-scale solid noise texture (SIFT finds blobs on it) from
+    ``views`` cameras 20 degrees apart on an arc 2.2 m from its centre, with exact poses."""
+    n, half = 8, 0.4
+    g = np.linspace(-half, half, n + 1)
+    vertices, faces = [], []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            u, v = np.meshgrid(g, g, indexing="ij")
+            p = np.zeros(u.shape + (3,))
+            p[..., axis], p[..., (axis + 1) % 3], p[..., (axis + 2) % 3] = sign * half, u, v
+            idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1) + sum(len(x) for x in vertices)
+            q = np.stack([idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]], -1).reshape(-1, 4)
+            f = np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])
+            faces.append(f if sign > 0 else f[:, ::-1])
+            vertices.append(p.reshape(-1, 3))
+    box = Mesh(np.concatenate(vertices), np.concatenate(faces))
+    rng = np.random.default_rng(0)
+    freq = rng.normal(size=(3, 16, 3))
+    freq *= (2 * np.pi / rng.uniform(0.04, 0.15, size=(3, 16)))[..., None] / np.linalg.norm(freq, axis=-1,
+                                                                                             keepdims=True)
+    phase = rng.uniform(0, 2 * np.pi, (3, 16))
+    out = []
+    for i in range(views):
+        a, e = np.radians(20.0 * i), np.radians(25.0)
+        centre = 2.2 * np.array([np.cos(e) * np.sin(a), np.sin(e), np.cos(e) * np.cos(a)])
+        cam = look_at(centre, np.zeros(3), size, size, 40.0, f"v{i}")
+        r = rasterize(cam, box.vertices, box.faces)
+        hit = r.face_id >= 0
+        pts = np.einsum("nk,nkj->nj", r.bary[hit], box.vertices[box.faces[r.face_id[hit]]])
+        image = np.full((size, size, 3), 0.5, np.float32)
+        image[hit] = np.stack([0.5 + 0.45 * np.tanh(4 * np.sin(pts @ freq[c].T + phase[c]).mean(1))
+                               for c in range(3)], -1)
+        out.append(View(cam, image, hit.astype(np.float32), hit.astype(np.uint8)))
+    return Capture(out)

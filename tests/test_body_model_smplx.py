@@ -1,0 +1,181 @@
+"""The ``smplx`` body model on a tiny SMPL-format model file written here (24 SMPL joints, a tetrahedron of
+vertices around each): the smplx package's own loading and skinning run on it and are checked against SMPL's
+formula evaluated independently in numpy."""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+
+pytest.importorskip("smplx", reason="the 'smplx' body model needs the smplx package (pip install 'pgc[body]')")
+torch = pytest.importorskip("torch", reason="the 'smplx' body model needs torch (pip install 'pgc[body]')")
+
+from pgc.errors import PGCConfigError, PGCDataError  # noqa: E402
+from pgc.registry import Registry  # noqa: E402
+from pgc.synth.skeleton import axis_angle_to_matrix, global_transforms  # noqa: E402
+
+SMPL_PARENTS = [-1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19, 20, 21]
+HALF = {0: (0, 0, 0), 1: (.08, -.08, 0), 3: (0, .1, 0), 4: (.09, -.45, 0), 6: (0, .25, 0), 7: (.09, -.85, 0),
+        9: (0, .32, 0), 10: (.09, -.9, .1), 12: (0, .5, 0), 13: (.07, .42, 0), 15: (0, .62, 0),
+        16: (.17, .45, 0), 18: (.42, .45, 0), 20: (.67, .45, 0), 22: (.75, .45, 0)}
+"""Left-side and centre joints of a stick figure in SMPL's frame (metres); odd right-side ones mirror them."""
+
+
+def tiny_smpl_arrays(seed: int = 0) -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    joints = np.zeros((24, 3))
+    for j, p in HALF.items():
+        joints[j] = p
+        if j in (1, 4, 7, 10, 13, 16, 18, 20, 22):
+            joints[j + 1] = (-p[0], p[1], p[2])
+    tet = np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]]) * 0.03 / np.sqrt(3)
+    v_template = (joints[:, None] + tet[None]).reshape(-1, 3)
+    faces = []
+    for j in range(24):
+        for tri in ([0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]):
+            a, b, c = (4 * j + np.array(tri))
+            n = np.cross(v_template[b] - v_template[a], v_template[c] - v_template[a])
+            faces.append([a, b, c] if n @ (v_template[a] - joints[j]) > 0 else [a, c, b])
+    V = len(v_template)
+    weights = np.kron(np.eye(24), np.ones((4, 1)))
+    shapedirs = rng.normal(0, 0.01, (V, 3, 10))
+    shapedirs[:, 1, 0] = 0.05 * v_template[:, 1]  # beta0 stretches the body vertically
+    # float32 arrays: smplx stores every model array at float32 precision (smplx.utils.to_np), whatever its dtype
+    return {"v_template": v_template.astype(np.float32), "shapedirs": shapedirs.astype(np.float32),
+            "posedirs": rng.normal(0, 1e-3, (V, 3, 207)).astype(np.float32),
+            "J_regressor": (weights.T / 4.0).astype(np.float32), "weights": weights.astype(np.float32),
+            "kintree_table": np.stack([np.array(SMPL_PARENTS) % 2**32, np.arange(24)]).astype(np.int64),
+            "f": np.array(faces, dtype=np.int64)}
+
+
+def smpl_numpy(data: dict, betas: np.ndarray, rotations: np.ndarray, translation: np.ndarray) -> np.ndarray:
+    """SMPL's formula, independently: shape and pose blend shapes, LBS, then PGC's rest placement."""
+    data = {k: np.asarray(v, np.float64) for k, v in data.items()}
+    shaped = data["v_template"] + data["shapedirs"][..., :len(betas)] @ betas
+    joints = data["J_regressor"] @ shaped
+    feature = (rotations[1:] - np.eye(3)).reshape(-1)
+    posed = shaped + data["posedirs"] @ feature
+    G = global_transforms(joints, np.array(SMPL_PARENTS), rotations)
+    skinned = np.einsum("vj,jab,vb->va", data["weights"], G[:, :3, :3], posed) + data["weights"] @ G[:, :3, 3]
+    ground = np.array([-joints[0, 0], -shaped[:, 1].min(), -joints[0, 2]])
+    return skinned + ground + translation
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    data = tiny_smpl_arrays()
+    path = tmp_path_factory.mktemp("smpl") / "SMPL_TINY.pkl"
+    path.write_bytes(pickle.dumps(data, protocol=2))
+    return path, data
+
+
+@pytest.fixture(scope="module")
+def body(tiny):
+    return Registry.discover().get("body_model", "smplx").create({"model_path": str(tiny[0])})
+
+
+def random_pose(rng, J=24, scale=0.6):
+    return np.stack([axis_angle_to_matrix(rng.normal(0, scale, 3)) for _ in range(J)])
+
+
+def test_rig_names_parents_and_rest_placement(body, tiny):
+    rig = body.rig()
+    assert rig.names[:3] == ("pelvis", "left_hip", "right_hip") and len(rig.names) == 24
+    assert rig.names[18:] == ("left_elbow", "right_elbow", "left_wrist", "right_wrist", "left_hand", "right_hand")
+    assert rig.parents.tolist() == SMPL_PARENTS
+    rest = body.forward()
+    assert rest.vertices[:, 1].min() == pytest.approx(0.0, abs=1e-6)
+    assert np.abs(rig.joints[0, [0, 2]]).max() < 1e-6
+    assert set(body.parameters) == {f"beta{i}" for i in range(10)}
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_forward_matches_smpl_formula(body, tiny, seed):
+    rng = np.random.default_rng(seed)
+    betas = rng.uniform(-2, 2, 10)
+    rotations, translation = random_pose(rng), rng.normal(0, 0.3, 3)
+    state = body.forward({f"beta{i}": b for i, b in enumerate(betas)}, rotations, translation)
+    expected = smpl_numpy(tiny[1], betas, rotations, translation)
+    # float32 model (smplx's default dtype): error ~ 1e-7 relative on ~1 m coordinates
+    np.testing.assert_allclose(state.vertices, expected, atol=2e-6)
+    assert state.faces.shape == (96, 3)
+
+
+def test_float64_forward_and_gradient_match(body, tiny):
+    rng = np.random.default_rng(3)
+    betas = torch.tensor(rng.uniform(-1, 1, 10), dtype=torch.float64, requires_grad=True)
+    rotations = torch.tensor(random_pose(rng)[None])
+    translation = torch.zeros(1, 3, dtype=torch.float64)
+
+    def f(b):
+        return body.forward_torch({f"beta{i}": b[i:i + 1] for i in range(10)}, rotations, translation).vertices
+
+    out = f(betas)
+    expected = smpl_numpy(tiny[1], betas.detach().numpy(), rotations[0].numpy(), np.zeros(3))
+    np.testing.assert_allclose(out[0].detach().numpy(), expected, atol=1e-12)
+    weights = torch.tensor(rng.normal(size=out.shape))
+    (out * weights).sum().backward()
+    h = 1e-6
+    with torch.no_grad():
+        numeric = [((f(betas + h * e) - f(betas - h * e)) * weights).sum().item() / (2 * h)
+                   for e in torch.eye(10, dtype=torch.float64)[[0, 4, 9]]]
+    np.testing.assert_allclose(betas.grad.numpy()[[0, 4, 9]], numeric, rtol=1e-6, atol=1e-9)
+
+
+def test_skin_clip_equals_per_frame_forward(body):
+    rng = np.random.default_rng(5)
+    rotations = np.stack([random_pose(rng) for _ in range(5)])
+    translation = rng.normal(0, 0.1, (5, 3))
+    clip = body.skin({"beta1": 0.5}, rotations, translation, chunk=2)
+    assert clip.shape == (5, 96, 3) and clip.dtype == np.float32
+    for t in (0, 4):
+        np.testing.assert_allclose(clip[t], body.forward({"beta1": 0.5}, rotations[t], translation[t]).vertices,
+                                   atol=1e-6)
+
+
+def test_npz_file_gives_the_same_body(tiny, tmp_path, body):
+    path = tmp_path / "SMPL_TINY.npz"
+    np.savez(path, **tiny[1])
+    other = Registry.discover().get("body_model", "smplx").create({"model_path": str(path)})
+    np.testing.assert_array_equal(other.forward().vertices, body.forward().vertices)
+
+
+class _Foreign:
+    """Stands for a chumpy array inside an unconverted SMPL pickle."""
+
+
+def test_bad_model_files_get_one_clear_error(tmp_path, tiny):
+    impl = Registry.discover().get("body_model", "smplx")
+    with pytest.raises(PGCConfigError, match="model_path"):
+        impl.create({})
+    cases = {"missing.pkl": None, "text.pkl": b"not a pickle", "foreign.pkl": pickle.dumps({"f": _Foreign()})}
+    lacking = dict(tiny[1])
+    del lacking["posedirs"]
+    cases["lacking.pkl"] = pickle.dumps(lacking)
+    bad_shape = dict(tiny[1], weights=tiny[1]["weights"][:, :5])
+    cases["bad_shape.pkl"] = pickle.dumps(bad_shape)
+    for name, content in cases.items():
+        if content is not None:
+            (tmp_path / name).write_bytes(content)
+        with pytest.raises(PGCDataError, match="model_path") as err:
+            impl.create({"model_path": str(tmp_path / name)})
+        assert "SMPL" in str(err.value), name
+    with pytest.raises(PGCDataError, match="lacks \\['posedirs'\\]"):
+        impl.create({"model_path": str(tmp_path / "lacking.pkl")})
+    with pytest.raises(PGCDataError, match="_Foreign"):
+        impl.create({"model_path": str(tmp_path / "foreign.pkl")})
+
+
+def test_bad_shape_and_pose_inputs(body):
+    with pytest.raises(PGCDataError, match="unknown shape parameter.*'height'"):
+        body.forward({"height": 1.0})
+    with pytest.raises(PGCDataError, match=r"beta0' = 4.0 is outside its range \[-3.0, 3.0\]"):
+        body.forward({"beta0": 4.0})
+    with pytest.raises(PGCDataError, match="finite number"):
+        body.forward({"beta0": float("nan")})
+    with pytest.raises(PGCDataError, match=r"rotations must have shape \(24, 3, 3\)"):
+        body.forward(None, np.eye(3)[None].repeat(23, 0))
+    with pytest.raises(PGCDataError, match="proper rotation"):
+        body.forward(None, 2 * np.eye(3)[None].repeat(24, 0))
