@@ -55,7 +55,7 @@ def folder_mb(path: Path) -> float:
 
 def clip_rotations(body, frames: int) -> np.ndarray:
     """A swinging-arms-and-legs clip: local rotations (T, J, 3, 3) about X of up to 0.8 rad."""
-    from pgc.synth.skeleton import axis_angle_to_matrix
+    from pgc.motion.rotations import axis_angle_to_matrix
 
     names = body.joint_names
     rotations = np.broadcast_to(np.eye(3), (frames, len(names), 3, 3)).copy()

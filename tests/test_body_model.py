@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from pgc.errors import PGCConfigError, PGCDataError, PGCPluginError
+from pgc.motion.rotations import axis_angle_to_matrix
 from pgc.registry import ROLES, Registry
-from pgc.synth.skeleton import axis_angle_to_matrix
+from pgc.testing.conformance import BodyModelConformance
 
 REGISTRY = Registry.discover()
 HAVE_ANNY = REGISTRY.get("body_model", "anny").available
@@ -97,124 +98,14 @@ def body(request, tiny_smpl_file, anny_body):
     return REGISTRY.get("body_model", "smplx").create({"model_path": str(tiny_smpl_file)})
 
 
+class TestBodyModelImplementations(BodyModelConformance):
+    @pytest.fixture
+    def implementation(self, body):
+        return body
+
+
 def random_rotations(rng, J, scale=0.5):
     return np.stack([axis_angle_to_matrix(rng.normal(0, scale, 3)) for _ in range(J)])
-
-
-class TestContract:
-    """What every implementation of the role keeps (pgc/roles/body_model.py)."""
-
-    def test_rig_and_rest_placement(self, body):
-        rig = body.rig()
-        J = len(rig.names)
-        assert rig.parents.shape == (J,) and rig.parents[0] == -1
-        assert np.all(rig.parents[1:] < np.arange(1, J)) and np.all(rig.parents[1:] >= 0)
-        assert rig.joints.shape == (J, 3) and np.all(np.isfinite(rig.joints))
-        rest = body.forward()
-        assert rest.vertices.dtype == np.float64 and rest.faces.dtype == np.int64
-        assert rest.faces.min() >= 0 and rest.faces.max() < len(rest.vertices)
-        assert rest.vertices[:, 1].min() == pytest.approx(0.0, abs=1e-9)
-        assert np.abs(rest.joints[0, [0, 2]]).max() < 1e-9
-        np.testing.assert_allclose(rest.transforms, np.broadcast_to(np.eye(4), (J, 4, 4)), atol=1e-12)
-        assert body.weights.shape == (len(rest.vertices), J) and body.weights.min() > -1e-9  # Anny: -8e-11
-        np.testing.assert_allclose(body.weights.sum(axis=1), 1.0, atol=1e-6)
-
-    def test_rigid_skinning_follows_the_weights(self, body):
-        """Without pose-corrective shapes, a posed vertex is the weighted blend of its joints' transforms."""
-        rng = np.random.default_rng(7)
-        rest = body.forward()
-        state = body.forward(None, random_rotations(rng, len(body.joint_names), 0.3))
-        blended = np.einsum("vj,jab->vab", body.weights, state.transforms)
-        expected = np.einsum("vab,vb->va", blended[:, :3, :3], rest.vertices) + blended[:, :3, 3]
-        corrective = 0.01 if "beta0" in body.parameters else 1e-9  # SMPL adds pose blend shapes (tiny file: mm)
-        assert np.abs(state.vertices - expected).max() < corrective
-
-    def test_faces_point_outward(self, body):
-        rest = body.forward()
-        v, f = rest.vertices, rest.faces
-        assert np.einsum("ij,ij->i", v[f[:, 0]], np.cross(v[f[:, 1]], v[f[:, 2]])).sum() > 0
-
-    def test_translation_moves_everything_rigidly(self, body):
-        rng = np.random.default_rng(0)
-        rotations = random_rotations(rng, len(body.joint_names))
-        a = body.forward(None, rotations)
-        b = body.forward(None, rotations, np.array([0.1, -0.2, 0.3]))
-        np.testing.assert_allclose(b.vertices - a.vertices, np.broadcast_to([0.1, -0.2, 0.3], a.vertices.shape),
-                                   atol=1e-9)
-        np.testing.assert_allclose(b.joints - a.joints, np.broadcast_to([0.1, -0.2, 0.3], a.joints.shape),
-                                   atol=1e-9)
-
-    def test_root_rotation_turns_the_skeleton_about_the_root(self, body):
-        rest = body.forward()
-        rotations = np.broadcast_to(np.eye(3), (len(body.joint_names), 3, 3)).copy()
-        rotations[0] = axis_angle_to_matrix(np.array([0.0, np.pi / 2, 0.0]))
-        turned = body.forward(None, rotations)
-        expected = (rest.joints - rest.joints[0]) @ rotations[0].T + rest.joints[0]
-        np.testing.assert_allclose(turned.joints, expected, atol=1e-9)
-
-    def test_posed_joints_follow_the_transforms(self, body):
-        rng = np.random.default_rng(1)
-        rig = body.rig()
-        state = body.forward(None, random_rotations(rng, len(rig.names)), rng.normal(0, 0.2, 3))
-        mapped = np.einsum("jab,jb->ja", state.transforms[:, :3, :3], rig.joints) + state.transforms[:, :3, 3]
-        np.testing.assert_allclose(state.joints, mapped, atol=1e-9)
-        # bone lengths are kept
-        bones = rig.parents[1:]
-        np.testing.assert_allclose(np.linalg.norm(state.joints[1:] - state.joints[bones], axis=1),
-                                   np.linalg.norm(rig.joints[1:] - rig.joints[bones], axis=1), atol=1e-9)
-
-    def test_skin_identity_clip_is_the_rest_mesh_and_frames_match_forward(self, body):
-        J = len(body.joint_names)
-        rest = body.forward().vertices
-        clip = body.skin(None, np.broadcast_to(np.eye(3), (3, J, 3, 3)))
-        assert clip.dtype == np.float32 and clip.shape == (3,) + rest.shape
-        np.testing.assert_allclose(clip, np.broadcast_to(rest, clip.shape), atol=1e-6)
-        rng = np.random.default_rng(2)
-        rotations = np.stack([random_rotations(rng, J) for _ in range(3)])
-        clip = body.skin(None, rotations, chunk=2)
-        np.testing.assert_allclose(clip[2], body.forward(None, rotations[2]).vertices, atol=1e-5)
-
-    def test_torch_float64_gradients_match_finite_differences(self, body):
-        import torch
-
-        rng = np.random.default_rng(4)
-        names = list(body.parameters)[:2]
-        start = body.check_shape({n: body.parameters[n].low + (0.37 + 0.21 * i) * (body.parameters[n].high
-                                                                                    - body.parameters[n].low)
-                                  for i, n in enumerate(names)})  # away from Anny's interpolation anchors
-        rotations = torch.tensor(random_rotations(rng, len(body.joint_names), 0.3)[None])
-        translation = torch.tensor([[0.1, 0.2, 0.3]], dtype=torch.float64, requires_grad=True)
-        weights = torch.tensor(rng.normal(size=body.forward().vertices.shape)[None])
-
-        def f(x):
-            shape = {n: torch.tensor([v], dtype=torch.float64) for n, v in start.items()}
-            shape.update({n: x[i:i + 1] for i, n in enumerate(names)})
-            return (body.forward_torch(shape, rotations, translation).vertices * weights).sum()
-
-        x = torch.tensor([start[n] for n in names], dtype=torch.float64, requires_grad=True)
-        value = f(x)
-        assert value.dtype == torch.float64
-        value.backward()
-        assert torch.isfinite(x.grad).all() and x.grad.abs().max() > 0
-        np.testing.assert_allclose(translation.grad.numpy()[0], weights.sum(dim=(0, 1)).numpy(), rtol=1e-12)
-        h = 1e-6
-        with torch.no_grad():
-            numeric = [(f(x + h * e) - f(x - h * e)).item() / (2 * h) for e in torch.eye(len(names), dtype=x.dtype)]
-        np.testing.assert_allclose(x.grad.numpy(), numeric, rtol=1e-6, atol=1e-8)
-
-    def test_bad_inputs_get_one_clear_error(self, body):
-        J = len(body.joint_names)
-        name, spec = next(iter(body.parameters.items()))
-        with pytest.raises(PGCDataError, match="unknown shape parameter.*'shoe_size'"):
-            body.forward({"shoe_size": 1.0})
-        with pytest.raises(PGCDataError, match=f"'{name}' = {spec.high + 1} is outside its range"):
-            body.forward({name: spec.high + 1})
-        with pytest.raises(PGCDataError, match="finite number"):
-            body.forward({name: True})
-        with pytest.raises(PGCDataError, match="NaN"):
-            body.forward(None, np.full((J, 3, 3), np.nan))
-        with pytest.raises(PGCDataError, match="T >= 1"):
-            body.skin(None, np.zeros((0, J, 3, 3)))
 
 
 # Anny's body --------------------------------------------------------------------------------------------------

@@ -14,7 +14,8 @@ torch = pytest.importorskip("torch", reason="the 'smplx' body model needs torch 
 
 from pgc.errors import PGCConfigError, PGCDataError  # noqa: E402
 from pgc.registry import Registry  # noqa: E402
-from pgc.synth.skeleton import axis_angle_to_matrix, global_transforms  # noqa: E402
+from pgc.motion.rotations import axis_angle_to_matrix  # noqa: E402
+from pgc.synth.skeleton import global_transforms  # noqa: E402
 
 SMPL_PARENTS = [-1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19, 20, 21]
 HALF = {0: (0, 0, 0), 1: (.08, -.08, 0), 3: (0, .1, 0), 4: (.09, -.45, 0), 6: (0, .25, 0), 7: (.09, -.85, 0),

@@ -10,7 +10,7 @@ import pytest
 
 from pgc.geometry import fibres
 from pgc.synth import fabrics
-from pgc.synth.skeleton import axis_angle_to_matrix
+from pgc.motion.rotations import axis_angle_to_matrix
 from pgc.types import Camera, Light, Mesh
 
 FIBRE_FABRICS = [name for name, fab in fabrics.FABRICS.items() if fab.hair is not None]

@@ -44,6 +44,8 @@ def _write(tmp_path: Path, text: str) -> Path:
     ('"animate"]', '"simulate"]', "[sweep].steps: unknown step 'simulate'"),
     ('steps = ["reconstruct", "animate"]', 'steps = ["animate"]', "each step needs the ones before it"),
     ('motions = ["goalpost"]', 'motions = ["moonwalk"]', "'moonwalk' is neither a built-in motion"),
+    ('motions = ["goalpost"]', 'motions = ["cmu:99_99"]', "no shipped clip 99_99.amc"),
+    ('motions = ["goalpost"]', 'motions = ["walk.bvh"]', "'walk.bvh' is neither a built-in motion"),
     ('rows = ["configuration"]', 'rows = ["colour"]', "[table].rows: unknown field 'colour'"),
     ('[table]', '[tables]', "tables: unknown key"),
     ('preset = "tiny"', 'preset = "knit"\ndetail = "lace"', "[scenes.a].detail: unknown detail 'lace'; choose from none"),
@@ -70,6 +72,23 @@ def test_sweep_cli_reports_a_bad_file_as_one_error_line(tmp_path, capsys):
     assert main(["sweep", str(path), "--out", str(tmp_path / "o"), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "[scenes.a].seed" in err and str(path) in err
+
+
+def test_sweeps_take_shipped_and_file_clips(tmp_path):
+    import shutil
+
+    from pgc.motion.drive import shipped_clip
+    from pgc.sweep.spec import load_sweep
+    from pgc.sweep.work import plan
+
+    shutil.copy(shipped_clip("cmu:02_03.bvh"), tmp_path / "run.bvh")
+    path = _write(tmp_path, GOOD.replace('motions = ["goalpost"]', 'motions = ["cmu:02_01", "run.bvh"]'))
+    sweep = load_sweep(path)
+    assert sweep.motions == ["cmu:02_01", "run.bvh"]
+    tasks, units, _ = plan(sweep, tmp_path / "out")
+    run_keys = {u.run_task for u in units}
+    runs = sorted(Path(t.args[3]).name for t in tasks if t.key in run_keys)
+    assert [r.rsplit("-", 1)[0] for r in runs] == ["a-cmu-02_01", "a-run"]  # no ':' in a folder name
 
 
 def test_scene_lists_expand_into_named_scenes(tmp_path):

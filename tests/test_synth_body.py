@@ -9,7 +9,8 @@ from pgc.errors import PGCDataError
 from pgc.synth.body import BodyShape, make_body
 from pgc.synth.garments import RESTING_TOP_GAP, boundary_loops, make_garment
 from pgc.synth.motions import MOTIONS, make_motion, motion_rotations
-from pgc.synth.skeleton import JOINTS, axis_angle_to_matrix, joint_index, rotation_between
+from pgc.motion.rotations import axis_angle_to_matrix
+from pgc.synth.skeleton import JOINTS, joint_index, rotation_between
 
 EDGE = 0.04  # coarse meshes keep these tests fast; the construction is the same at every resolution
 

@@ -9,7 +9,7 @@ import pytest
 
 from pgc.geometry.embedded import DetailSurface, embedded_points
 from pgc.synth import detail as D
-from pgc.synth.skeleton import axis_angle_to_matrix
+from pgc.motion.rotations import axis_angle_to_matrix
 from pgc.types import Camera, Mesh
 
 pytest.importorskip("mitsuba")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from pgc.synth import fabrics, rig
-from pgc.synth.skeleton import axis_angle_to_matrix
+from pgc.motion.rotations import axis_angle_to_matrix
 from pgc.types import Mesh
 
 

@@ -1,4 +1,4 @@
-"""Rotation helpers for motion clips: Euler angles in any axis order, quaternions, slerp.
+"""Rotation helpers: Euler angles in any axis order, axis-angle (Rodrigues), quaternions, slerp.
 
 Matrices act on column vectors. An Euler order such as ``"ZXY"`` lists the rotations as they are written
 (BVH ``CHANNELS ... Zrotation Xrotation Yrotation``): the matrix is ``Rz @ Rx @ Ry``, so the last axis is
@@ -90,3 +90,16 @@ def rotation_aligning(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return 2 * np.outer(ortho, ortho) - np.eye(3)
     k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
     return np.eye(3) + k + k @ k / (1 + c)
+
+
+def axis_angle_to_matrix(aa: np.ndarray) -> np.ndarray:
+    """Rodrigues: (..., 3) axis-angle vectors (radians) to (..., 3, 3) rotation matrices."""
+    aa = np.asarray(aa, dtype=np.float64)
+    theta = np.linalg.norm(aa, axis=-1, keepdims=True)
+    axis = np.divide(aa, theta, out=np.zeros_like(aa), where=theta > 1e-12)
+    x, y, z = axis[..., 0], axis[..., 1], axis[..., 2]
+    zero = np.zeros_like(x)
+    k = np.stack([zero, -z, y, z, zero, -x, -y, x, zero], axis=-1).reshape(aa.shape[:-1] + (3, 3))
+    s, c = np.sin(theta)[..., None], np.cos(theta)[..., None]
+    eye = np.broadcast_to(np.eye(3), k.shape)
+    return eye + s * k + (1 - c) * (k @ k)

@@ -164,16 +164,22 @@ def _check_name(path: Path, key: str, name: Any) -> None:
 def _check_motions(path: Path, motions: list[str], root: Path) -> None:
     from pgc.errors import PGCDataError
     from pgc.io.motion import load_motion
+    from pgc.motion.drive import SHIPPED_PREFIX, is_clip, load_clip, shipped_clip
     from pgc.synth.motions import MOTIONS
 
     for m in motions:
         if m in MOTIONS:
             continue
-        if not (root / m).exists():
-            raise _fail(path, "[sweep].motions", f"'{m}' is neither a built-in motion ({', '.join(MOTIONS)}) nor a "
-                                                 "file (paths are relative to the sweep file)")
+        shipped = m.startswith(SHIPPED_PREFIX)
+        if not shipped and not (root / m).exists():
+            raise _fail(path, "[sweep].motions", f"'{m}' is neither a built-in motion ({', '.join(MOTIONS)}), a "
+                                                 f"shipped clip ({SHIPPED_PREFIX}NAME) nor a file (paths are "
+                                                 "relative to the sweep file)")
         try:
-            load_motion(root / m)
+            if shipped or is_clip(m):
+                load_clip(shipped_clip(m) if shipped else root / m)
+            else:
+                load_motion(root / m)
         except PGCDataError as exc:
             raise _fail(path, "[sweep].motions", str(exc)) from None
 

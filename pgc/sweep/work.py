@@ -102,7 +102,7 @@ def plan(sweep: Sweep, out: Path) -> tuple[list[Task], list[Unit], dict[str, Any
                 continue
             for motion_name, motion in zip(sweep.motions, motions):
                 rkey = content_key("run", akey, motion, conf.cfg.to_dict(), sweep.steps)
-                run = out / "runs" / f"{scene.name}-{Path(motion_name).stem}-{rkey}"
+                run = out / "runs" / f"{scene.name}-{Path(motion_name).stem.replace(':', '-')}-{rkey}"
                 rdonor = first_run.get((asset_task, motion))
                 rdonor = rdonor if rdonor and rdonor[0] != f"run-{rkey}" else None
                 run_task = add(f"run-{rkey}", make_run,

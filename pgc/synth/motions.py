@@ -12,7 +12,8 @@ from typing import Callable
 import numpy as np
 
 from pgc.errors import PGCDataError
-from pgc.synth.skeleton import A_POSE_ARM_DEG, JOINTS, axis_angle_to_matrix, joint_index, rotation_between
+from pgc.motion.rotations import axis_angle_to_matrix
+from pgc.synth.skeleton import A_POSE_ARM_DEG, JOINTS, joint_index, rotation_between
 from pgc.types import BodyMotion
 
 PoseFn = Callable[[np.ndarray], np.ndarray]

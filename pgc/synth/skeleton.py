@@ -94,19 +94,6 @@ def rest_joints(shape: BodyShape) -> np.ndarray:
     return np.stack([p[j] for j in JOINTS])
 
 
-def axis_angle_to_matrix(aa: np.ndarray) -> np.ndarray:
-    """Rodrigues: (..., 3) axis-angle vectors (radians) to (..., 3, 3) rotation matrices."""
-    aa = np.asarray(aa, dtype=np.float64)
-    theta = np.linalg.norm(aa, axis=-1, keepdims=True)
-    axis = np.divide(aa, theta, out=np.zeros_like(aa), where=theta > 1e-12)
-    x, y, z = axis[..., 0], axis[..., 1], axis[..., 2]
-    zero = np.zeros_like(x)
-    k = np.stack([zero, -z, y, z, zero, -x, -y, x, zero], axis=-1).reshape(aa.shape[:-1] + (3, 3))
-    s, c = np.sin(theta)[..., None], np.cos(theta)[..., None]
-    eye = np.broadcast_to(np.eye(3), k.shape)
-    return eye + s * k + (1 - c) * (k @ k)
-
-
 def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Axis-angle (3,) of the shortest rotation taking direction ``a`` to direction ``b``."""
     a = np.asarray(a, float) / np.linalg.norm(a)

@@ -11,7 +11,8 @@ and overrides the ``implementation`` fixture to return an instance of their impl
             return BoxBlurFilter()
 
 Every check is small (images of a few hundred pixels, meshes of a few dozen vertices) so a suite runs
-in seconds. The built-in implementations run the same suites (``tests/test_conformance.py``).
+in seconds. The built-in implementations run the same suites (``tests/test_conformance.py``; the body models'
+in ``tests/test_body_model.py``, beside their own tests).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import numpy as np
 import pytest
 
 from pgc.errors import PGCDataError
+from pgc.motion.rotations import axis_angle_to_matrix
 
 
 class _Suite:
@@ -236,6 +238,130 @@ class SimulatorConformance(_Suite):
         assert vertices.dtype == np.float32
         assert np.all(np.isfinite(vertices))
         assert isinstance(sim.figures, dict)
+
+
+# ------------------------------------------------------------------------------------------- body_model
+
+
+def _random_rotations(rng: np.random.Generator, joints: int, scale: float = 0.5) -> np.ndarray:
+    """(joints, 3, 3) rotations about random axes, angles ~ N(0, scale) radians per component."""
+    return axis_angle_to_matrix(rng.normal(0, scale, (joints, 3)))
+
+
+class BodyModelConformance(_Suite):
+    """Contract of ``pgc.roles.body_model.BodyModel``: rig, rest placement, skinning, gradients, bad input."""
+
+    def test_rig_and_rest_placement(self, implementation):
+        rig = implementation.rig()
+        J = len(rig.names)
+        assert rig.parents.shape == (J,) and rig.parents[0] == -1
+        assert np.all(rig.parents[1:] < np.arange(1, J)) and np.all(rig.parents[1:] >= 0)
+        assert rig.joints.shape == (J, 3) and np.all(np.isfinite(rig.joints))
+        rest = implementation.forward()
+        assert rest.vertices.dtype == np.float64 and rest.faces.dtype == np.int64
+        assert rest.faces.min() >= 0 and rest.faces.max() < len(rest.vertices)
+        assert rest.vertices[:, 1].min() == pytest.approx(0.0, abs=1e-9)
+        assert np.abs(rest.joints[0, [0, 2]]).max() < 1e-9
+        np.testing.assert_allclose(rest.transforms, np.broadcast_to(np.eye(4), (J, 4, 4)), atol=1e-12)
+        assert implementation.weights.shape == (len(rest.vertices), J) and implementation.weights.min() > -1e-9  # Anny: -8e-11
+        np.testing.assert_allclose(implementation.weights.sum(axis=1), 1.0, atol=1e-6)
+
+    def test_rigid_skinning_follows_the_weights(self, implementation):
+        """Without pose-corrective shapes, a posed vertex is the weighted blend of its joints' transforms."""
+        rng = np.random.default_rng(7)
+        rest = implementation.forward()
+        state = implementation.forward(None, _random_rotations(rng, len(implementation.joint_names), 0.3))
+        blended = np.einsum("vj,jab->vab", implementation.weights, state.transforms)
+        expected = np.einsum("vab,vb->va", blended[:, :3, :3], rest.vertices) + blended[:, :3, 3]
+        corrective = 0.01 if "beta0" in implementation.parameters else 1e-9  # SMPL adds pose blend shapes (tiny file: mm)
+        assert np.abs(state.vertices - expected).max() < corrective
+
+    def test_faces_point_outward(self, implementation):
+        rest = implementation.forward()
+        v, f = rest.vertices, rest.faces
+        assert np.einsum("ij,ij->i", v[f[:, 0]], np.cross(v[f[:, 1]], v[f[:, 2]])).sum() > 0
+
+    def test_translation_moves_everything_rigidly(self, implementation):
+        rng = np.random.default_rng(0)
+        rotations = _random_rotations(rng, len(implementation.joint_names))
+        a = implementation.forward(None, rotations)
+        b = implementation.forward(None, rotations, np.array([0.1, -0.2, 0.3]))
+        np.testing.assert_allclose(b.vertices - a.vertices, np.broadcast_to([0.1, -0.2, 0.3], a.vertices.shape),
+                                   atol=1e-9)
+        np.testing.assert_allclose(b.joints - a.joints, np.broadcast_to([0.1, -0.2, 0.3], a.joints.shape),
+                                   atol=1e-9)
+
+    def test_root_rotation_turns_the_skeleton_about_the_root(self, implementation):
+        rest = implementation.forward()
+        rotations = np.broadcast_to(np.eye(3), (len(implementation.joint_names), 3, 3)).copy()
+        rotations[0] = axis_angle_to_matrix(np.array([0.0, np.pi / 2, 0.0]))
+        turned = implementation.forward(None, rotations)
+        expected = (rest.joints - rest.joints[0]) @ rotations[0].T + rest.joints[0]
+        np.testing.assert_allclose(turned.joints, expected, atol=1e-9)
+
+    def test_posed_joints_follow_the_transforms(self, implementation):
+        rng = np.random.default_rng(1)
+        rig = implementation.rig()
+        state = implementation.forward(None, _random_rotations(rng, len(rig.names)), rng.normal(0, 0.2, 3))
+        mapped = np.einsum("jab,jb->ja", state.transforms[:, :3, :3], rig.joints) + state.transforms[:, :3, 3]
+        np.testing.assert_allclose(state.joints, mapped, atol=1e-9)
+        # bone lengths are kept
+        bones = rig.parents[1:]
+        np.testing.assert_allclose(np.linalg.norm(state.joints[1:] - state.joints[bones], axis=1),
+                                   np.linalg.norm(rig.joints[1:] - rig.joints[bones], axis=1), atol=1e-9)
+
+    def test_skin_identity_clip_is_the_rest_mesh_and_frames_match_forward(self, implementation):
+        J = len(implementation.joint_names)
+        rest = implementation.forward().vertices
+        clip = implementation.skin(None, np.broadcast_to(np.eye(3), (3, J, 3, 3)))
+        assert clip.dtype == np.float32 and clip.shape == (3,) + rest.shape
+        np.testing.assert_allclose(clip, np.broadcast_to(rest, clip.shape), atol=1e-6)
+        rng = np.random.default_rng(2)
+        rotations = np.stack([_random_rotations(rng, J) for _ in range(3)])
+        clip = implementation.skin(None, rotations, chunk=2)
+        np.testing.assert_allclose(clip[2], implementation.forward(None, rotations[2]).vertices, atol=1e-5)
+
+    def test_torch_float64_gradients_match_finite_differences(self, implementation):
+        import torch
+
+        rng = np.random.default_rng(4)
+        names = list(implementation.parameters)[:2]
+        start = implementation.check_shape({n: implementation.parameters[n].low + (0.37 + 0.21 * i) * (implementation.parameters[n].high
+                                                                                    - implementation.parameters[n].low)
+                                  for i, n in enumerate(names)})  # away from Anny's interpolation anchors
+        rotations = torch.tensor(_random_rotations(rng, len(implementation.joint_names), 0.3)[None])
+        translation = torch.tensor([[0.1, 0.2, 0.3]], dtype=torch.float64, requires_grad=True)
+        weights = torch.tensor(rng.normal(size=implementation.forward().vertices.shape)[None])
+
+        def f(x):
+            shape = {n: torch.tensor([v], dtype=torch.float64) for n, v in start.items()}
+            shape.update({n: x[i:i + 1] for i, n in enumerate(names)})
+            return (implementation.forward_torch(shape, rotations, translation).vertices * weights).sum()
+
+        x = torch.tensor([start[n] for n in names], dtype=torch.float64, requires_grad=True)
+        value = f(x)
+        assert value.dtype == torch.float64
+        value.backward()
+        assert torch.isfinite(x.grad).all() and x.grad.abs().max() > 0
+        np.testing.assert_allclose(translation.grad.numpy()[0], weights.sum(dim=(0, 1)).numpy(), rtol=1e-12)
+        h = 1e-6
+        with torch.no_grad():
+            numeric = [(f(x + h * e) - f(x - h * e)).item() / (2 * h) for e in torch.eye(len(names), dtype=x.dtype)]
+        np.testing.assert_allclose(x.grad.numpy(), numeric, rtol=1e-6, atol=1e-8)
+
+    def test_bad_inputs_get_one_clear_error(self, implementation):
+        J = len(implementation.joint_names)
+        name, spec = next(iter(implementation.parameters.items()))
+        with pytest.raises(PGCDataError, match="unknown shape parameter.*'shoe_size'"):
+            implementation.forward({"shoe_size": 1.0})
+        with pytest.raises(PGCDataError, match=f"'{name}' = {spec.high + 1} is outside its range"):
+            implementation.forward({name: spec.high + 1})
+        with pytest.raises(PGCDataError, match="finite number"):
+            implementation.forward({name: True})
+        with pytest.raises(PGCDataError, match="NaN"):
+            implementation.forward(None, np.full((J, 3, 3), np.nan))
+        with pytest.raises(PGCDataError, match="T >= 1"):
+            implementation.skin(None, np.zeros((0, J, 3, 3)))
 
 
 # --------------------------------------------------------------------------------------- splat_renderer
