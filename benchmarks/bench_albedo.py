@@ -65,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     from pgc import config
     from pgc.albedo.dataset import scale_invariant_error
     from pgc.albedo.shading_ratio import ShadingRatioEstimator
-    from pgc.albedo.texture_stage import build_base_color, garment_mask
+    from pgc.albedo.base_color import build_base_color, garment_mask
     from pgc.io.capture import read_capture
     from pgc.pipeline.reconstruct import white_shading
     from pgc.pipeline.stage_io import load_mesh

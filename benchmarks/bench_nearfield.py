@@ -34,7 +34,7 @@ def main() -> None:
 
     from scipy.ndimage import binary_erosion
 
-    from pgc.albedo.texture_stage import garment_mask
+    from pgc.albedo.base_color import garment_mask
     from pgc.config import load as load_config
     from pgc.io.asset import read_asset
     from pgc.io.capture import read_capture

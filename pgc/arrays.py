@@ -1,6 +1,6 @@
 """The array-operations layer: maths written once, run by numpy, torch and JAX.
 
-The BRDF maths (:mod:`pgc.brdfs.maths`), the XPBD maths (:mod:`pgc.sim.kernels`) and the splat maths take an
+The BRDF maths (:mod:`pgc.brdfs.maths`), the XPBD maths (:mod:`pgc.sim.xpbd`) and the splat maths take an
 :class:`ArrayOps` and compute through it. ``ops.xp`` is the library's numpy-like namespace for the calls
 every library spells alike (``abs``, ``arange``, ``zeros_like``, ``sum``/``mean`` as methods, ``einsum``,
 indexing, ``@``); the methods of :class:`ArrayOps` are the calls that differ (``clamp`` against ``clip``,

@@ -23,7 +23,7 @@ from pgc.errors import PGCPluginError
 DEFAULT_FLAGS = ("-O3", "-fopenmp", "-fPIC", "-shared", "-std=c++17")
 
 
-class KernelUnavailable(PGCPluginError):
+class NativeLibraryUnavailable(PGCPluginError):
     """A compiled kernel cannot be built or loaded (no compiler, no OpenMP, a compile error, ...); the set-up
     installs g++ (Debian), so on a supported machine this names a broken toolchain."""
 
@@ -43,14 +43,14 @@ def library_path(source: Path, flags: Sequence[str] = DEFAULT_FLAGS) -> Path:
 def build(source: Path, flags: Sequence[str] = DEFAULT_FLAGS, force: bool = False) -> Path:
     """Compile ``source`` if its library is not cached yet; returns the library path.
 
-    Raises :class:`KernelUnavailable` naming the reason (no compiler, compiler output) on failure.
+    Raises :class:`NativeLibraryUnavailable` naming the reason (no compiler, compiler output) on failure.
     """
     target = library_path(source, flags)
     if target.exists() and not force:
         return target
     compiler = os.environ.get("CXX") or shutil.which("g++") or shutil.which("c++")
     if compiler is None:
-        raise KernelUnavailable("no C++ compiler found: install g++ (apt-get install g++; scripts/setup.sh does) "
+        raise NativeLibraryUnavailable("no C++ compiler found: install g++ (apt-get install g++; scripts/setup.sh does) "
                                 "or point CXX at one")
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(suffix=".so", dir=target.parent)
@@ -59,9 +59,9 @@ def build(source: Path, flags: Sequence[str] = DEFAULT_FLAGS, force: bool = Fals
         try:
             res = subprocess.run([compiler, *flags, str(source), "-o", tmp], capture_output=True, text=True)
         except OSError as exc:
-            raise KernelUnavailable(f"cannot run the C++ compiler '{compiler}': {exc}") from exc
+            raise NativeLibraryUnavailable(f"cannot run the C++ compiler '{compiler}': {exc}") from exc
         if res.returncode != 0:
-            raise KernelUnavailable(f"compiling {Path(source).name} failed:\n{res.stderr[-2000:]}")
+            raise NativeLibraryUnavailable(f"compiling {Path(source).name} failed:\n{res.stderr[-2000:]}")
         os.replace(tmp, target)
     finally:
         if os.path.exists(tmp):
@@ -74,13 +74,13 @@ def load(source: Path, flags: Sequence[str] = DEFAULT_FLAGS) -> ctypes.CDLL:
     try:
         return ctypes.CDLL(str(build(source, flags)))
     except OSError as exc:
-        raise KernelUnavailable(f"loading {Path(source).name}'s library failed: {exc}") from exc
+        raise NativeLibraryUnavailable(f"loading {Path(source).name}'s library failed: {exc}") from exc
 
 
 def loads(loader: Callable[[], object]) -> bool:
     """Whether ``loader()`` (a kernel module's cached ``load``) builds and loads its library here."""
     try:
         loader()
-    except KernelUnavailable:
+    except NativeLibraryUnavailable:
         return False
     return True

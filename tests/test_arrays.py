@@ -182,7 +182,7 @@ def test_bad_requests_are_one_clear_error():
 
 
 def test_importing_the_layer_imports_neither_torch_nor_jax():
-    code = ("import sys; import pgc.arrays as a; a.array_ops('numpy'); import pgc.brdfs.maths, pgc.sim.kernels; "
+    code = ("import sys; import pgc.arrays as a; a.array_ops('numpy'); import pgc.brdfs.maths, pgc.sim.xpbd; "
             "print(','.join(m for m in ('torch', 'jax') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == ""

@@ -7,7 +7,7 @@ import pytest
 
 from pgc.sim.collision import candidate_corners, signed_distance, vertex_normals
 from pgc.arrays import array_ops
-from pgc.sim.kernels import closest_barycentric
+from pgc.sim.xpbd import closest_barycentric
 from pgc.sim.model import BEND, STRETCH, bending_pairs, build_cloth_model, vertex_masses
 from pgc.sim.sagfree import hem_sag, sag, shape_error, solve_sag_free
 from pgc.testing.cloth_scenes import grid_cloth, skirt, uv_sphere

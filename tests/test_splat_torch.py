@@ -182,7 +182,7 @@ def test_registered_and_built_through_the_registry():
 def test_kernel_build_failure_is_reported_and_auto_falls_back(tmp_path, monkeypatch):
     monkeypatch.setenv("PGC_CACHE_DIR", str(tmp_path))
     monkeypatch.setenv("CXX", str(tmp_path / "no-such-compiler"))
-    with pytest.raises(fused_kernel.KernelUnavailable):
+    with pytest.raises(fused_kernel.NativeLibraryUnavailable):
         fused_kernel.build()
     monkeypatch.setattr(fused_kernel, "available", lambda: False)
     assert TorchSplatRenderer({"compositor": "auto"}).compositor == "torch"

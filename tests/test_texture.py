@@ -110,7 +110,7 @@ def test_color_matrix_stays_well_conditioned_for_nearly_collinear_colours():
 def test_colour_correction_removes_per_view_casts_from_the_cross_view_spread():
     """Views of one texture through different camera casts (per-channel gains) disagree; fitting each to
     the consensus brings the spread back to that of the noise alone."""
-    from pgc.albedo.texture_stage import cross_view_spread
+    from pgc.albedo.base_color import cross_view_spread
     from pgc.texture.backproject import ViewTexture
 
     rng = np.random.default_rng(2)

@@ -118,7 +118,7 @@ def test_registered_light_and_validated():
 def test_avx512_and_baseline_builds_give_the_same_bytes(dtype):
     """The kernel's two builds (AVX-512, on a CPU that has it, and the baseline) agree byte for byte:
     no fused multiply-adds, IEEE division and square root in both."""
-    from pgc_native.xpbd.kernel import avx512
+    from pgc_native.xpbd.library import avx512
 
     if not avx512():  # both runs would be the baseline build: nothing to compare
         pytest.skip("this CPU has no AVX-512")

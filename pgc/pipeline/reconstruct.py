@@ -85,7 +85,7 @@ def load_splats(ctx: Context, folder: Path) -> tuple[Any, list[str]]:
 
 
 def compute_base_color(ctx: Context, folder: Path) -> tuple[np.ndarray, dict[str, Any]]:
-    from pgc.albedo.texture_stage import build_base_color
+    from pgc.albedo.base_color import build_base_color
 
     settings, full = ctx.cfg.stage("base_color"), ctx.values["mesh"]
     estimator = ctx.implementation("albedo_estimator")

@@ -125,7 +125,7 @@ def choose_kernel(renderer: HybridRenderer, capture, cfg: RunConfig) -> KernelDe
     capture light, whatever light the run is rendered under) on the kernel views; with ``far_source = 'auto'``
     also choose the far field: the one whose hybrid has the lower error there (mode 'metric': the better
     score of its metric; ``far_errors`` then holds the metric's values)."""
-    from pgc.albedo.texture_stage import garment_mask
+    from pgc.albedo.base_color import garment_mask
     from pgc.filtering.auto import TrainingFrame, choose_kernel_by_metric, hybrid_error, select_kernel
 
     settings = cfg.stage("render")

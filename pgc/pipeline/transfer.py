@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pgc.arrays import array_ops
-from pgc.sim.kernels import closest_barycentric
+from pgc.sim.xpbd import closest_barycentric
 from pgc.types import Mesh
 
 

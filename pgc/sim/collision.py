@@ -6,7 +6,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from pgc.arrays import array_ops
-from pgc.sim.kernels import closest_contact
+from pgc.sim.xpbd import closest_contact
 from pgc.types import Mesh
 
 

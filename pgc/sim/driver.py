@@ -18,7 +18,7 @@ from pgc.sim.collision import (
     self_collision_pairs,
     vertex_normals,
 )
-from pgc.sim.kernels import FrameInput, StepSettings
+from pgc.sim.xpbd import FrameInput, StepSettings
 from pgc.sim.model import STRETCH, ClothModel, build_cloth_model
 from pgc.sim.options import XPBDOptions
 from pgc.sim.schedule import body_schedule
@@ -26,7 +26,7 @@ from pgc.types import BodyMotion, Mesh
 
 
 def constraint_groups(model: ClothModel, options: XPBDOptions, h: float) -> list[tuple[np.ndarray, ...]]:
-    """The constraint groups of :mod:`pgc.sim.kernels` (numpy): all constraints in one Jacobi sweep with
+    """The constraint groups of :mod:`pgc.sim.xpbd` (numpy): all constraints in one Jacobi sweep with
     shares ``omega / max(n_i, n_j)``, or one Gauss-Seidel group per graph colour (share 1)."""
     alpha_t = model.compliance / (h * h)
 

@@ -25,7 +25,7 @@ import numpy as np
 
 from pgc import native
 from pgc.checks import require_finite
-from pgc.native import KernelUnavailable
+from pgc.native import NativeLibraryUnavailable
 from pgc.types import Camera
 
 SOURCE = Path(__file__).with_name("fused.cpp")
@@ -34,7 +34,7 @@ VECTOR_FLAGS = ("-fno-trapping-math",)
 """Lets GCC if-convert the pixel loops (select instead of branch); values are unchanged (no -ffast-math)."""
 DEFAULT_TILE = 16
 """Tile edge (pixels) of the kernel's binning; the image does not depend on it."""
-__all__ = ["DEFAULT_TILE", "KernelUnavailable", "Workspace", "available", "backward", "build", "camera_vector", "flags",
+__all__ = ["DEFAULT_TILE", "NativeLibraryUnavailable", "Workspace", "available", "backward", "build", "camera_vector", "flags",
            "forward", "load", "machine_peaks", "render_path", "render_stats"]
 
 
@@ -57,7 +57,7 @@ def flags() -> tuple[str, ...]:
 
 
 def build(force: bool = False) -> Path:
-    """Compile the fused kernel if needed; returns the library path. Raises KernelUnavailable on failure."""
+    """Compile the fused kernel if needed; returns the library path. Raises NativeLibraryUnavailable on failure."""
     return native.build(SOURCE, flags(), force=force)
 
 
@@ -90,7 +90,7 @@ def available() -> bool:
 def render_path(choice: str, fallback: str, host: bool = True) -> str:
     """The render path a renderer's ``compositor`` option names: "auto" is "fused" when the arrays live on the
     host (``host``) and the kernel builds here, else ``fallback``; "fused" loads the kernel (raising
-    :class:`KernelUnavailable` with the reason); any other choice is returned as it is."""
+    :class:`NativeLibraryUnavailable` with the reason); any other choice is returned as it is."""
     if choice == "auto":
         return "fused" if host and available() else fallback
     if choice == "fused":

@@ -1,5 +1,5 @@
 """Stage ``base_color``: the garment's albedo texture (albedo estimator, colour correction, UV merge;
-:mod:`pgc.albedo.texture_stage`)."""
+:mod:`pgc.albedo.base_color`)."""
 
 from __future__ import annotations
 

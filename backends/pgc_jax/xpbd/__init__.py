@@ -1,1 +1,1 @@
-"""XPBD cloth simulator in JAX (``xpbd-jax``): the shared kernels of :mod:`pgc.sim.kernels`, one jitted frame."""
+"""XPBD cloth simulator in JAX (``xpbd-jax``): the shared kernels of :mod:`pgc.sim.xpbd`, one jitted frame."""

@@ -1,4 +1,4 @@
-"""``xpbd-jax``: :func:`pgc.sim.kernels.advance_frame` jitted whole (substeps and iterations become
+"""``xpbd-jax``: :func:`pgc.sim.xpbd.advance_frame` jitted whole (substeps and iterations become
 ``lax.fori_loop``); compiled once per garment shape (and per self-collision pair bucket): the scalar settings
 (substeps, iterations, time step, damping, offset, friction, ...) are traced, not compiled in."""
 
@@ -13,7 +13,7 @@ import numpy as np
 
 from pgc.arrays import ArrayOps, array_ops
 from pgc.sim.driver import Stepper, XPBDSimulator
-from pgc.sim.kernels import FrameInput, Statics, StepSettings, advance_frame
+from pgc.sim.xpbd import FrameInput, Statics, StepSettings, advance_frame
 from pgc.sim.model import ClothModel
 from pgc.sim.options import XPBDOptions
 

@@ -1,1 +1,1 @@
-"""``xpbd-native``: the XPBD cloth frame step of :mod:`pgc.sim.kernels` as one compiled C++/OpenMP call."""
+"""``xpbd-native``: the XPBD cloth frame step of :mod:`pgc.sim.xpbd` as one compiled C++/OpenMP call."""

@@ -1,4 +1,4 @@
-"""``xpbd-native``: :func:`pgc.sim.kernels.advance_frame` as one call of the compiled kernel ``xpbd.cpp``.
+"""``xpbd-native``: :func:`pgc.sim.xpbd.advance_frame` as one call of the compiled kernel ``xpbd.cpp``.
 
 The kernel follows the array maths element by element (same formulas, same order of the region tests,
 same argmin tie rule), in float32 or float64. Parallel loops run over vertices, or over the constraints of
@@ -14,10 +14,10 @@ import numpy as np
 
 from pgc.cores import ThreadChooser
 from pgc.sim.driver import Stepper, XPBDSimulator
-from pgc.sim.kernels import FrameInput, StepSettings
+from pgc.sim.xpbd import FrameInput, StepSettings
 from pgc.sim.model import ClothModel
 from pgc_native.specs_xpbd import NativeXPBDOptions
-from pgc_native.xpbd import kernel
+from pgc_native.xpbd import library
 
 
 def _ptr(a: np.ndarray) -> int:
@@ -31,7 +31,7 @@ class NativeStepper(Stepper):
 
     def __init__(self, model: ClothModel, settings: StepSettings, options: NativeXPBDOptions) -> None:
         super().__init__(model, settings, options)
-        lib = kernel.load()
+        lib = library.load()
         self.dtype = np.float64 if options.dtype == "float64" else np.float32
         self.fn = lib.pgc_xpbd_frame_f64 if options.dtype == "float64" else lib.pgc_xpbd_frame_f32
         f = self._f

@@ -1,1 +1,1 @@
-"""XPBD cloth simulator in PyTorch (``xpbd-torch``): the shared kernels of :mod:`pgc.sim.kernels`, eager."""
+"""XPBD cloth simulator in PyTorch (``xpbd-torch``): the shared kernels of :mod:`pgc.sim.xpbd`, eager."""

@@ -1,4 +1,4 @@
-"""``xpbd-torch``: runs :func:`pgc.sim.kernels.advance_frame` eagerly on torch tensors (CPU)."""
+"""``xpbd-torch``: runs :func:`pgc.sim.xpbd.advance_frame` eagerly on torch tensors (CPU)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import torch
 
 from pgc.arrays import array_ops
 from pgc.sim.driver import Stepper, XPBDSimulator
-from pgc.sim.kernels import FrameInput, Statics, StepSettings, advance_frame
+from pgc.sim.xpbd import FrameInput, Statics, StepSettings, advance_frame
 from pgc.sim.model import ClothModel
 from pgc.sim.options import XPBDOptions
 from pgc_torch.threads import torch_threads

@@ -32,7 +32,7 @@ def scaled_mae(pred: np.ndarray, truth: np.ndarray, mask: np.ndarray) -> float:
 
 
 def bench(ctx: Context) -> list[dict[str, Any]]:
-    from pgc.albedo.texture_stage import garment_mask
+    from pgc.albedo.base_color import garment_mask
     from pgc.io.capture import read_capture
     from pgc.io.mesh import read_mesh
     from pgc.types import Light, Material

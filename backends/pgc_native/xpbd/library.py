@@ -1,6 +1,6 @@
 """The C++/OpenMP frame kernel ``xpbd.cpp``, built and loaded through :mod:`pgc.native`.
 
-Build ahead of time with ``python -m pgc_native.xpbd.kernel``; otherwise the first simulation builds it
+Build ahead of time with ``python -m pgc_native.xpbd.library``; otherwise the first simulation builds it
 (a few seconds) into the kernel cache.
 """
 
@@ -20,7 +20,7 @@ so the baseline and the AVX-512 builds in the library give the same bytes."""
 
 
 def build(force: bool = False) -> Path:
-    """Compile the kernel if needed; returns the library path. Raises KernelUnavailable on failure."""
+    """Compile the kernel if needed; returns the library path. Raises NativeLibraryUnavailable on failure."""
     return native.build(SOURCE, FLAGS, force=force)
 
 
