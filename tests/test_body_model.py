@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import dataclasses
-import pickle
 
 import numpy as np
 import pytest
@@ -73,11 +72,9 @@ def test_missing_package_gives_the_registry_message():
 
 @pytest.fixture(scope="module")
 def tiny_smpl_file(tmp_path_factory):
-    from test_body_model_smplx import tiny_smpl_arrays
+    from pgc.testing.body_scenes import write_tiny_smpl
 
-    path = tmp_path_factory.mktemp("smpl") / "SMPL_TINY.pkl"
-    path.write_bytes(pickle.dumps(tiny_smpl_arrays()))
-    return path
+    return write_tiny_smpl(tmp_path_factory.mktemp("smpl") / "SMPL_TINY.pkl")
 
 
 @pytest.fixture(scope="module")

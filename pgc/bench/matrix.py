@@ -41,6 +41,7 @@ WORKLOADS: dict[str, str] = {
     "metric": "pgc.bench.workloads.metric",
     "scene_renderer": "pgc.bench.workloads.scene_renderer",
     "calibrator": "pgc.bench.workloads.calibrator",
+    "body_model": "pgc.bench.workloads.body_model",
 }
 """Role -> module of its workload (imported only when the role runs); the matrix validates roles against it."""
 
