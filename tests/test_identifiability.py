@@ -54,3 +54,19 @@ def test_base_light_sheen_scale_is_an_exact_null_space(scene, light):
     fit = ident.analyse(J, theta, ident.FIT_PARAMETERS, noise=0.01)
     assert fit.singular_values[-1] > 1e-4 * fit.singular_values[0]
     assert np.isfinite(fit.relative_std).all()
+
+
+FLEECE = ((0.10, 0.20, 0.11), (0.16, 0.27, 0.15))
+
+
+def test_sky_and_sun_identifies_the_fleece_far_better_than_uniform_light():
+    """On the fleece control the weakest direction of the fit's parameters (roughness against sheen colour)
+    has a singular value 3.3-6.3x larger under sky + sun than under the uniform environment (measured: 3.3x on
+    this 60-point, 8-view patch with 32 directions, 6.3x in docs/pbr.md's 300-point study); asserted at 2.5x."""
+    scene = ident.study_scene(FLEECE, n_points=60, n_views=8)
+    theta = ident.parameter_vector([1, 1, 1], [1, 1, 1], 0.8, [0.35, 0.36, 0.35], 0.45)
+    sigma = {}
+    for light in ("uniform", "sky+sun"):
+        J = ident.jacobian(scene, ident.lightings(32)[light], theta)
+        sigma[light] = ident.analyse(J, theta, ident.FIT_PARAMETERS, noise=0.01).singular_values[-1]
+    assert sigma["sky+sun"] > 2.5 * sigma["uniform"], sigma

@@ -210,3 +210,44 @@ def _tangent_frame(n: Any) -> tuple[Any, Any]:
     t = torch.stack([1.0 + sign * n[:, 0] ** 2 * a, sign * b_, -sign * n[:, 0]], -1)
     b = torch.stack([b_, sign + n[:, 1] ** 2 * a, -n[:, 1]], -1)
     return t, b
+
+
+def recover(scene: StudyScene, frames: list[Frame], truth: np.ndarray, start: np.ndarray, noise: float,
+            seed: int = 0, iterations: int = 30) -> np.ndarray:
+    """Fit :data:`FIT_PARAMETERS` (base scale fixed at ``truth``'s) to the pixels of ``truth`` plus Gaussian
+    noise of std ``noise``, from ``start``, by Levenberg-Marquardt on the log parameters (roughness, sheen
+    colour and sheen roughness clamped to their upper bound 1); returns the fitted 11-vector."""
+    import torch
+
+    cols = np.array([PARAMETER_NAMES.index(n) for n in FIT_PARAMETERS])
+    bounded = np.array([n != "light" and not n.startswith("light_") for n in FIT_PARAMETERS])
+    rng = np.random.default_rng(seed)
+    target = render(scene, frames, torch.as_tensor(truth)).numpy()
+    target = target + rng.normal(0.0, noise, target.shape)
+    theta = np.asarray(start, np.float64).copy()
+    theta[:3] = truth[:3]
+    damping = 1e-3
+
+    def residual(t: np.ndarray) -> np.ndarray:
+        return render(scene, frames, torch.as_tensor(t)).numpy() - target
+
+    r = residual(theta)
+    for _ in range(iterations):
+        J = jacobian(scene, frames, theta)[:, cols] * theta[cols][None]  # d pixels / d log p
+        JtJ, Jtr = J.T @ J, J.T @ r
+        while True:
+            step = -np.linalg.solve(JtJ + damping * np.diag(np.diag(JtJ) + 1e-12), Jtr)
+            log_p = np.log(theta[cols]) + step
+            log_p[bounded] = np.minimum(log_p[bounded], 0.0)
+            trial = theta.copy()
+            trial[cols] = np.exp(log_p)
+            trial[PARAMETER_NAMES.index("sheen_roughness")] = max(trial[PARAMETER_NAMES.index("sheen_roughness")],
+                                                                  0.01)
+            r_trial = residual(trial)
+            if r_trial @ r_trial < r @ r:
+                theta, r, damping = trial, r_trial, max(damping / 3.0, 1e-9)
+                break
+            damping *= 4.0
+            if damping > 1e8:
+                return theta
+    return theta
