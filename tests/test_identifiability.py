@@ -70,3 +70,17 @@ def test_sky_and_sun_identifies_the_fleece_far_better_than_uniform_light():
         J = ident.jacobian(scene, ident.lightings(32)[light], theta)
         sigma[light] = ident.analyse(J, theta, ident.FIT_PARAMETERS, noise=0.01).singular_values[-1]
     assert sigma["sky+sun"] > 2.5 * sigma["uniform"], sigma
+
+
+def test_tangent_frame_is_orthonormal_and_right_handed():
+    from pgc.arrays import array_ops
+    from pgc.brdfs.maths import tangent_frame
+
+    n = ident.fibonacci_sphere(200)
+    n = np.concatenate([n, [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]])
+    t, b = tangent_frame(array_ops("numpy"), n)
+    for u, v in ((t, b), (t, n), (b, n)):
+        np.testing.assert_allclose((u * v).sum(-1), 0.0, atol=1e-12)
+    for u in (t, b):
+        np.testing.assert_allclose(np.linalg.norm(u, axis=-1), 1.0, atol=1e-12)
+    np.testing.assert_allclose(np.cross(t, b), n, atol=1e-12)

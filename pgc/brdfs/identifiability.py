@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from pgc.brdfs.maths import eval_pgc_sheen
+from pgc.brdfs.maths import eval_pgc_sheen, tangent_frame
 
 PARAMETER_NAMES = ("base_r", "base_g", "base_b", "light_r", "light_g", "light_b", "roughness",
                    "sheen_r", "sheen_g", "sheen_b", "sheen_roughness")
@@ -137,7 +137,7 @@ def render(scene: StudyScene, frames: list[Frame], theta: Any) -> Any:
     point, view = scene.pairs
     n = torch.as_tensor(scene.normals[point], dtype=torch.float64)
     v = torch.as_tensor(scene.views[view], dtype=torch.float64)
-    t, b = _tangent_frame(n)
+    t, b = tangent_frame(ops, n)
     v_loc = torch.stack([(v * t).sum(-1), (v * b).sum(-1), (v * n).sum(-1)], -1)
     base = torch.as_tensor(scene.base[point], dtype=torch.float64) * theta[0:3]
     params = {"roughness": theta[6], "sheen_color": theta[7:10], "sheen_roughness": theta[10]}
@@ -198,18 +198,6 @@ def analyse(J: np.ndarray, theta: np.ndarray, names: tuple[str, ...], noise: flo
     variance = (vt.T ** 2 * np.where(np.isinf(inv_s2), 0.0, inv_s2)[None]).sum(1)
     variance = np.where((np.abs(vt.T[:, np.isinf(inv_s2)]) > 1e-6).any(1), np.inf, variance)
     return Identifiability(tuple(names), s, null, noise * np.sqrt(variance / n_pix), n_pix)
-
-
-def _tangent_frame(n: Any) -> tuple[Any, Any]:
-    """Orthonormal tangents (t, b) for unit normals (P, 3) (Duff et al. 2017)."""
-    import torch
-
-    sign = torch.where(n[:, 2] >= 0, 1.0, -1.0).to(n.dtype)
-    a = -1.0 / (sign + n[:, 2])
-    b_ = n[:, 0] * n[:, 1] * a
-    t = torch.stack([1.0 + sign * n[:, 0] ** 2 * a, sign * b_, -sign * n[:, 0]], -1)
-    b = torch.stack([b_, sign + n[:, 1] ** 2 * a, -n[:, 1]], -1)
-    return t, b
 
 
 def recover(scene: StudyScene, frames: list[Frame], truth: np.ndarray, start: np.ndarray, noise: float,
