@@ -74,6 +74,18 @@ def sheen_frame(ops: ArrayOps, vx: Any, vy: Any) -> tuple[Any, Any]:
     return ops.where(ok, vx * inv_r, 1.0), ops.where(ok, vy * inv_r, 0.0)
 
 
+def tangent_frame(ops: ArrayOps, n: Any) -> tuple[Any, Any]:
+    """Orthonormal tangents (t, b) completing unit normals n (..., 3) to a right-handed frame (t, b, n),
+    branchless (Duff et al. 2017)."""
+    nx, ny, nz = ops.split(n)
+    sign = ops.where(nz >= 0.0, 1.0, -1.0)
+    a = -1.0 / (sign + nz)
+    b_ = nx * ny * a
+    t = ops.stack([1.0 + sign * nx * nx * a, sign * b_, -sign * nx], -1)
+    b = ops.stack([b_, sign + ny * ny * a, -ny], -1)
+    return t, b
+
+
 def ltc_density(ops: ArrayOps, a_inv: Any, b_inv: Any, wx: Any, wy: Any, wz: Any) -> Any:
     """The cosine-weighted LTC lobe D(w) for w in the LTC frame (X, Y, N); a pdf over the hemisphere.
 

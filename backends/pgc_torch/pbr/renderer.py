@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from pgc.arrays import array_ops
-from pgc.brdfs.maths import EVALUATORS
+from pgc.brdfs.maths import EVALUATORS, tangent_frame
 from pgc.brdfs.parameters import PARAMETERS
 from pgc.errors import PGCDataError
 from pgc.roles.pbr_renderer import PBRRenderer
@@ -96,7 +96,7 @@ class TorchPBRRenderer(PBRRenderer):
                 v = torch.as_tensor(view_from[sl] - points[sl], dtype=torch.float32)
                 v = v / v.norm(dim=1, keepdim=True).clamp_min(1e-12)
                 n = torch.where((n * v).sum(1, keepdim=True) < 0, -n, n)  # two-sided: face the viewer
-                t, b = _tangent_frame(n)
+                t, b = tangent_frame(ops, n)
                 to_local = lambda d: torch.stack([(d * t).sum(-1), (d * b).sum(-1), (d * n).sum(-1)], -1)  # noqa: E731
                 v_loc = to_local(v)  # (p, 3)
                 l_loc = torch.stack([dirs @ t.T, dirs @ b.T, dirs @ n.T], -1).transpose(0, 1)  # (p, k, 3)
@@ -164,14 +164,3 @@ def _constant_base(material: Material) -> np.ndarray:
         raise PGCDataError("material has neither a base_color texture nor params['base_color']; give one")
     return np.asarray(value, dtype=np.float64).reshape(3)
 
-
-def _tangent_frame(n):
-    """Orthonormal tangents (t, b) for unit normals n (P, 3), branchless (Duff et al. 2017)."""
-    import torch
-
-    sign = torch.where(n[:, 2] >= 0, 1.0, -1.0)
-    a = -1.0 / (sign + n[:, 2])
-    b_ = n[:, 0] * n[:, 1] * a
-    t = torch.stack([1.0 + sign * n[:, 0] ** 2 * a, sign * b_, -sign * n[:, 0]], -1)
-    b = torch.stack([b_, sign + n[:, 1] ** 2 * a, -n[:, 1]], -1)
-    return t, b
