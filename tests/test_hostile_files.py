@@ -276,7 +276,7 @@ def test_every_integer_option_of_every_schema_refuses_booleans_floats_and_huge_v
             value = [bad] if kind == "list" else bad
             with pytest.raises(pydantic.ValidationError, match="Input should be a valid integer in ") as exc:
                 model.model_validate({name: value})
-            assert exc.value.errors()[0]["loc"][0] == name, path
+            assert name in [e["loc"][0] for e in exc.value.errors()], path  # beside any required option's error
 
 
 def test_the_stage_settings_declare_and_describe_an_upper_bound_for_every_integer():
