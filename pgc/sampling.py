@@ -1,4 +1,4 @@
-"""Evenly spread subsets (of views, cameras, frames). Light module."""
+"""Evenly spread subsets (of views, cameras, frames) and directions. Light module."""
 
 from __future__ import annotations
 
@@ -14,3 +14,12 @@ def spread(items: Sequence[T], count: int) -> list[T]:
     if count >= len(items):
         return list(items)
     return [items[int(i)] for i in np.linspace(0, len(items) - 1, count).round().astype(int)]
+
+
+def fibonacci_sphere(n: int) -> np.ndarray:
+    """(n, 3) unit vectors spread evenly over the sphere (+Y the polar axis)."""
+    k = np.arange(n) + 0.5
+    y = 1.0 - 2.0 * k / n
+    r = np.sqrt(np.maximum(1.0 - y * y, 0.0))
+    phi = k * np.pi * (3.0 - np.sqrt(5.0))
+    return np.stack([r * np.cos(phi), y, r * np.sin(phi)], axis=1)

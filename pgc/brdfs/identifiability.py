@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from pgc.brdfs.maths import eval_pgc_sheen, tangent_frame
+from pgc.sampling import fibonacci_sphere
 
 PARAMETER_NAMES = ("base_r", "base_g", "base_b", "light_r", "light_g", "light_b", "roughness",
                    "sheen_r", "sheen_g", "sheen_b", "sheen_roughness")
@@ -55,15 +56,6 @@ class StudyScene:
         cos = self.normals @ self.views.T
         point, view = np.nonzero(cos >= self.min_view_cos)
         self.pairs = (point, view)
-
-
-def fibonacci_sphere(n: int) -> np.ndarray:
-    """(n, 3) unit vectors spread evenly over the sphere (+Y the polar axis)."""
-    k = np.arange(n) + 0.5
-    y = 1.0 - 2.0 * k / n
-    r = np.sqrt(np.maximum(1.0 - y * y, 0.0))
-    phi = k * math.pi * (3.0 - math.sqrt(5.0))
-    return np.stack([r * np.cos(phi), y, r * np.sin(phi)], axis=1)
 
 
 def direction(elevation_deg: float, azimuth_deg: float) -> np.ndarray:

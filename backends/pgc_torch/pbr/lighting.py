@@ -13,15 +13,6 @@ import numpy as np
 from pgc.types import Light
 
 
-def fibonacci_directions(n: int) -> np.ndarray:
-    """(n, 3) unit vectors spread evenly over the sphere."""
-    k = np.arange(n) + 0.5
-    y = 1.0 - 2.0 * k / n
-    r = np.sqrt(np.maximum(1.0 - y * y, 0.0))
-    phi = k * np.pi * (3.0 - np.sqrt(5.0))
-    return np.stack([r * np.cos(phi), y, r * np.sin(phi)], axis=1)
-
-
 def envmap_directions(height: int, width: int, rotation_deg: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """World directions (H*W, 3) of the pixel centres of a lat-long map and their solid angles (H*W,)."""
     u = (np.arange(width) + 0.5) / width

@@ -21,8 +21,9 @@ from pgc.brdfs.parameters import PARAMETERS
 from pgc.errors import PGCDataError
 from pgc.roles.pbr_renderer import PBRRenderer
 from pgc.roles.splat_renderer import RenderOutput
+from pgc.sampling import fibonacci_sphere
 from pgc.types import Camera, Light, Material, Mesh
-from pgc_torch.pbr.lighting import direction_radiance, fibonacci_directions
+from pgc_torch.pbr.lighting import direction_radiance
 from pgc_torch.pbr.visibility import visibility
 from pgc_torch.specs_pbr import TorchPBROptions
 from pgc_torch.threads import torch_threads
@@ -113,7 +114,7 @@ class TorchPBRRenderer(PBRRenderer):
         from pgc.texture.sample import sample_uv
         from pgc.texture.visibility import render_faces
 
-        directions = fibonacci_directions(self.options.directions)
+        directions = fibonacci_sphere(self.options.directions)
         raster = render_faces(mesh, camera, occluder=occluder)
         covered = raster.face_id >= 0
         face, bary = raster.face_id[covered], raster.bary[covered]
@@ -136,7 +137,7 @@ class TorchPBRRenderer(PBRRenderer):
         from pgc.texture.sample import sample_uv
 
         height, width = int(resolution[0]), int(resolution[1])
-        directions = fibonacci_directions(self.options.directions)
+        directions = fibonacci_sphere(self.options.directions)
         geom = texel_geometry(mesh, height, width)
         valid = geom.valid
         points, normals, vis = self._surface(mesh, geom.face[valid], geom.bary[valid], directions, occluder)
