@@ -42,15 +42,17 @@ def synthetic_capture(folder: Path, preset: str, seed: int, cfg: config_mod.RunC
                       reporter: Reporter | None = None) -> bool:
     """Generate the synthetic capture of ``preset`` and ``seed`` into ``folder`` with ``cfg``'s scene renderer,
     unless the folder already holds it: its key (the preset's settings, the seed and the scene renderer's
-    implementation, options and version) is kept in ``folder/.pgc-synth-key``. Returns whether it generated."""
+    implementation, options and version, and the body model's) is kept in ``folder/.pgc-synth-key``. Returns whether it generated."""
     from pgc.synth.generate import generate, get_preset
     from pgc.synth.render import scene_renderer
 
-    key = content_key("synth", asdict(get_preset(preset)), seed, cfg.role_key("scene_renderer"))
+    key = content_key("synth", asdict(get_preset(preset)), seed, cfg.role_key("scene_renderer"),
+                      cfg.role_key("body_model"))
     marker = Path(folder) / SYNTH_KEY_FILE
     if marker.is_file() and marker.read_text() == key:
         return False
-    generate(folder, preset=preset, seed=seed, reporter=reporter, renderer=scene_renderer(cfg))
+    generate(folder, preset=preset, seed=seed, reporter=reporter, renderer=scene_renderer(cfg),
+             body_model=cfg.create("body_model"))
     marker.write_text(key)
     return True
 
