@@ -17,11 +17,12 @@ pytest.importorskip("mitsuba")
 
 
 @pytest.fixture(scope="module")
-def tiny(tmp_path_factory, default_scene_renderer):
+def tiny(tmp_path_factory, default_scene_renderer, default_body_model):
     from pgc.synth.generate import generate
 
     out = tmp_path_factory.mktemp("synth") / "tiny"
-    generate(out, "tiny", garment="tshirt", fabric="cotton-sheen", seed=1, renderer=default_scene_renderer)
+    generate(out, "tiny", garment="tshirt", fabric="cotton-sheen", seed=1, renderer=default_scene_renderer,
+             body_model=default_body_model)
     return out
 
 
@@ -241,7 +242,7 @@ def test_render_frames_rejects_bad_input(tiny, capture_and_oracle, default_scene
 
 
 @pytest.mark.slow
-def test_same_seed_gives_byte_identical_output_and_the_cli_works(tmp_path, default_scene_renderer):
+def test_same_seed_gives_byte_identical_output_and_the_cli_works(tmp_path, default_scene_renderer, default_body_model):
     from pgc.cli import main
     from pgc.synth.generate import generate, get_preset
 
@@ -249,7 +250,7 @@ def test_same_seed_gives_byte_identical_output_and_the_cli_works(tmp_path, defau
             "--detail", "seams", "--fit", "resting", "--looseness", "0.015"]
     assert main(["synth", str(tmp_path / "a"), *args]) == 0
     generate(tmp_path / "b", get_preset("tiny", views=2, resolution=32), fabric="fleece", seed=7, detail="seams",
-             fit="resting", looseness=0.015, renderer=default_scene_renderer)
+             fit="resting", looseness=0.015, renderer=default_scene_renderer, body_model=default_body_model)
     files_a = sorted(p.relative_to(tmp_path / "a") for p in (tmp_path / "a").rglob("*") if p.is_file())
     files_b = sorted(p.relative_to(tmp_path / "b") for p in (tmp_path / "b").rglob("*") if p.is_file())
     assert files_a == files_b and len(files_a) > 20
@@ -270,7 +271,7 @@ def test_same_seed_gives_byte_identical_output_and_the_cli_works(tmp_path, defau
         assert z["color"].shape == (2, 32, 32, 3) and z["garment_mask"].max() == 1.0
 
 
-def test_unknown_names_are_rejected():
+def test_unknown_names_are_rejected(default_body_model):
     from pgc.synth.fabrics import get_fabric
     from pgc.synth.generate import get_preset
 
@@ -285,20 +286,22 @@ def test_unknown_names_are_rejected():
     with pytest.raises(PGCDataError, match="--detail.*use one of: none, relief, seams"):
         get_detail("lace")
     with pytest.raises(PGCDataError, match="--fit.*use one of: loose, resting"):
-        make_garment(make_body(edge_length=0.04), "tshirt", fit="tight")
+        make_garment(make_body(default_body_model), "tshirt", fit="tight")
 
 
-def test_stored_body_model_and_motions_reproduce_the_body(tiny):
-    from pgc.synth.body import make_body
+def test_stored_body_model_and_motions_reproduce_the_body(tiny, default_body_model):
+    from pgc.synth.body import draw_phenotype, make_body
     from pgc.synth.ground_truth import read_body_model, read_ground_truth
     from pgc.synth.motions import make_motion
 
     body = read_body_model(tiny)
     gt = read_ground_truth(tiny)
     np.testing.assert_allclose(body.vertices, gt.body.vertices, atol=1e-6)  # the capture's body is its rest pose
+    assert body.phenotype == draw_phenotype(default_body_model, 1) and body.model == "AnnyBody"
+    assert gt.manifest["body"] == {"model": "AnnyBody", "phenotype": body.phenotype, "height_m": round(body.height, 4)}
     with np.load(tiny / "ground_truth" / "motions.npz") as z:
         rotations = z["walk"]
-    fresh = make_motion(make_body(body.shape, edge_length=0.04), "walk")
+    fresh = make_motion(make_body(default_body_model, body.phenotype), "walk")
     np.testing.assert_allclose(body.pose(rotations), fresh.vertices, atol=1e-5)
 
 

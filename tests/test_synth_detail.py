@@ -20,10 +20,10 @@ COARSE = replace(D.DetailSpec(), edge=0.008)
 
 
 @pytest.fixture(scope="module")
-def body():
+def body(default_body_model):
     from pgc.synth.body import make_body
 
-    return make_body(edge_length=EDGE)
+    return make_body(default_body_model)
 
 
 @pytest.fixture(scope="module")
@@ -206,12 +206,12 @@ def test_resting_garment_hangs_from_the_shoulders(body, kind):
 
 
 @pytest.fixture(scope="module")
-def capture(tmp_path_factory, default_scene_renderer):
+def capture(tmp_path_factory, default_scene_renderer, default_body_model):
     from pgc.synth.generate import generate, get_preset
 
     out = tmp_path_factory.mktemp("synth_detail") / "tiny"
     generate(out, get_preset("tiny", views=2, resolution=48), fabric="rib-knit-sheen", detail="relief", fit="resting",
-             looseness=0.012, seed=2, renderer=default_scene_renderer)
+             looseness=0.012, seed=2, renderer=default_scene_renderer, body_model=default_body_model)
     return out
 
 

@@ -126,8 +126,9 @@ class SynthBody:
         candidates[~far] = face[np.minimum(i[~far], len(face) - 1)]  # misses repeat the nearest sample's face
         candidates[~far] = np.where(np.isfinite(d[~far]), candidates[~far], candidates[~far][:, :1])
         candidates[far] = vertex_face[vertex_tree.query(points[far], k=CANDIDATES)[1]]
-        return closest_contact(array_ops("numpy"), points, self.vertices, vertex_normals(self.vertices, self.faces),
-                               self.faces[candidates]).signed
+        contact = closest_contact(array_ops("numpy"), points, self.vertices,
+                                  vertex_normals(self.vertices, self.faces), self.faces[candidates])
+        return np.where(contact.signed < 0, -1.0, 1.0) * np.linalg.norm(points - contact.point, axis=1)
 
 
 def _surface_samples(vertices: np.ndarray, faces: np.ndarray):

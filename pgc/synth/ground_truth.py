@@ -102,10 +102,7 @@ def write_ground_truth(root: str | os.PathLike, gt: GroundTruth, body: SynthBody
     write_json(out / "light.json", {"radiance": gt.light.radiance.tolist(), "rotation_deg": gt.light.rotation_deg})
     for kind, env in envmaps.items():
         imgio.write_exr(out / "envmaps" / f"{kind}.exr", env)
-    _save_npz(out / "body_model.npz", vertices=body.vertices, faces=body.faces, joints=body.joints,
-              joint_names=np.array(body.joint_names), parents=body.parents, weights=body.weights,
-              model=np.array(body.model), phenotype_names=np.array(list(body.phenotype)),
-              phenotype_values=np.array(list(body.phenotype.values()), np.float64))
+    write_body_model(out, body)
     _save_npz(out / "motions.npz", **motions)
     write_json(out / "scene.json", dict(manifest, files=sorted(str(p.relative_to(out)) for p in out.rglob("*")
                                                                 if p.is_file() and p.name != "scene.json")))
@@ -160,6 +157,16 @@ def read_ground_truth(root: str | os.PathLike) -> GroundTruth:
     return GroundTruth(read_mesh(gt_dir / "body.obj"), garment, material,
                        Light(np.asarray(light_doc["radiance"]), rotation_deg=light_doc.get("rotation_deg", 0.0)),
                        normal_map, fibres, tuple(mat.get("skin_albedo", SKIN_ALBEDO)), manifest, detail)
+
+
+def write_body_model(folder: str | os.PathLike, body: SynthBody) -> Path:
+    """Write ``folder/body_model.npz`` (the skinned body, its model's name and phenotype) and return its path."""
+    path = Path(folder) / "body_model.npz"
+    _save_npz(path, vertices=body.vertices, faces=body.faces, joints=body.joints, joint_names=np.array(body.joint_names),
+              parents=body.parents, weights=body.weights, model=np.array(body.model),
+              phenotype_names=np.array(list(body.phenotype)),
+              phenotype_values=np.array(list(body.phenotype.values()), np.float64))
+    return path
 
 
 def read_body_model(root: str | os.PathLike) -> SynthBody:
