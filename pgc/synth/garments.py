@@ -26,6 +26,9 @@ RESTING_TOP_GAP = 0.005
 simulation's cloth-body offset is 4 mm."""
 BLEND = 0.012
 """Smooth-union blend radius of the body and the hip frustum, as a fraction of the height."""
+SAG_RADIUS = 0.05
+"""Resting fit: the clearance grows by the sag of a straight edge of the garment's resolution over a surface of
+this radius of curvature (metres, an upper arm's), so no edge cuts through the body: resolution^2 / (8 r)."""
 ARM_WORDS = ("Arm", "Hand", "Finger", "Thumb")
 """Rig joints whose vertices are the arms (left out when sizing the hip frustum)."""
 
@@ -62,18 +65,20 @@ def _garment_field(body: SynthBody, cone: Cone, looseness: float):
     return field
 
 
-def _resting_field(body: SynthBody, cone: Cone, looseness: float):
+def _resting_field(body: SynthBody, cone: Cone, looseness: float, resolution: float):
     """Resting fit: the body's surface offset by a clearance that grows from :data:`RESTING_TOP_GAP` at the
-    chest (0.72 h and up) to ``looseness`` at the waist (0.6 h and down), plus 1 cm of ease under the arms and
-    up to 8 mm more around the sleeves, united with the frustum over the hips."""
+    chest (0.72 h and up) to ``looseness`` at the waist (0.6 h and down), plus 1 cm of ease under the arms, up
+    to 8 mm more around the sleeves and the sag of an edge of ``resolution`` (:data:`SAG_RADIUS`), united with
+    the frustum over the hips."""
     h, shoulder_x = body.height, float(body.joint("l_shoulder")[0])
     armpits = [body.joint(f"{side}_shoulder") + np.array([sign * 0.018 * h, -0.07 * h, 0.0])
                for side, sign in (("l", 1.0), ("r", -1.0))]
     exact = looseness + 0.07
+    sag = resolution ** 2 / (8 * SAG_RADIUS)
 
     def field(p: np.ndarray) -> np.ndarray:
         t = np.clip((p[:, 1] - 0.6 * h) / (0.12 * h), 0.0, 1.0)
-        gap = looseness + (RESTING_TOP_GAP - looseness) * t * t * (3 - 2 * t)
+        gap = looseness + (RESTING_TOP_GAP - looseness) * t * t * (3 - 2 * t) + sag
         for a in armpits:  # ease under the arms, where the sleeve meets the side
             gap = gap + 0.01 * np.exp(-np.sum((p - a) ** 2, axis=1) / (2 * (0.025 * h) ** 2))
         u = np.clip((np.abs(p[:, 0]) - shoulder_x) / (0.05 * h), 0.0, 1.0)  # the sleeves flare a little
@@ -140,7 +145,8 @@ def _build(body: SynthBody, kind: str, looseness: float, resolution: float, slee
     sleeve = upper_arm * (sleeve_length if kind == "tshirt" else sleeve_length * 0.25)
     hem = (0.47 if kind == "tshirt" else 0.28) * h * length
     cone = hip_cone(body, kind, hem)
-    field = (_resting_field if fit == "resting" else _garment_field)(body, cone, looseness)
+    field = (_resting_field(body, cone, looseness, resolution) if fit == "resting"
+             else _garment_field(body, cone, looseness))
     lo = joints.min(axis=0) - 0.3 * h
     hi = joints.max(axis=0) + 0.3 * h
     spacing = float(np.clip(resolution / 2.5, 0.006, 0.016))  # marching-cubes grid
