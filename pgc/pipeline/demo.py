@@ -1,8 +1,8 @@
 """``pgc demo``: the whole pipeline on a synthetic scene, measured against its ground truth.
 
 synthetic capture -> reconstruct -> animate on the paper's three test motions (goalpost, spooky, arms-up) and
-a shipped CMU clip (:data:`DEMO_CLIP`) -> hybrid render -> ground-truth renders of the same simulated geometry -> metrics -> report. Every step
-is cached, so a rerun after an interruption resumes; ``metrics.json`` and ``report.html`` land in OUT.
+a shipped CMU clip (:data:`DEMO_CLIP`) -> hybrid render -> ground-truth renders of the same simulated geometry
+-> metrics -> report. Every step is cached, so a rerun after an interruption resumes; ``metrics.json`` and ``report.html`` land in OUT.
 """
 
 from __future__ import annotations
@@ -45,7 +45,8 @@ def synthetic_capture(folder: Path, preset: str, seed: int, cfg: config_mod.RunC
                       reporter: Reporter | None = None) -> bool:
     """Generate the synthetic capture of ``preset`` and ``seed`` into ``folder`` with ``cfg``'s scene renderer,
     unless the folder already holds it: its key (the preset's settings, the seed and the scene renderer's
-    implementation, options and version, and the body model's) is kept in ``folder/.pgc-synth-key``. Returns whether it generated."""
+    implementation, options and version, and the body model's) is kept in ``folder/.pgc-synth-key``. Returns
+    whether it generated."""
     from pgc.synth.generate import generate, get_preset
     from pgc.synth.render import scene_renderer
 

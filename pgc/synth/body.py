@@ -49,7 +49,8 @@ def draw_phenotype(body_model: BodyModel, seed: int) -> dict[str, float]:
     shape = {}
     for name, spec in body_model.parameters.items():
         third = (spec.high - spec.low) / 6
-        lo, hi = PLAUSIBLE_PHENOTYPE.get(name, (max(spec.low, spec.default - third), min(spec.high, spec.default + third)))
+        middle = (max(spec.low, spec.default - third), min(spec.high, spec.default + third))
+        lo, hi = PLAUSIBLE_PHENOTYPE.get(name, middle)
         shape[name] = round(float(rng.uniform(lo, hi)), 4)
     return body_model.check_shape(shape)
 
@@ -110,8 +111,8 @@ class SynthBody:
         """Signed distance (metres, negative inside) of ``points`` (N, 3) to the rest surface: the distance to
         the closest of the triangles of the :data:`CANDIDATES` nearest surface samples (within ``exact_within``
         metres; farther, of the nearest vertices: an over-estimate by at most the gap to the truly nearest
-        triangle), signed by the interpolated vertex normal there. (A nearest-neighbour query far from a surface visits most of
-        its samples, so the bound keeps the field fast.)"""
+        triangle), signed by the interpolated vertex normal there. (A nearest-neighbour query far from a
+        surface visits most of its samples, so the bound keeps the field fast.)"""
         from pgc.arrays import array_ops
         from pgc.sim.collision import vertex_normals
         from pgc.sim.xpbd import closest_contact

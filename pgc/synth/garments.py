@@ -60,7 +60,8 @@ def _garment_field(body: SynthBody, cone: Cone, looseness: float):
     def field(p: np.ndarray) -> np.ndarray:
         u = np.clip((np.abs(p[:, 0]) - shoulder_x) / (0.05 * h), 0.0, 1.0)
         grow = looseness * (1 + 0.3 * u * u * (3 - 2 * u))
-        return implicit.smooth_union([body.field(p, exact) - grow, implicit.cone_field(p, cone, looseness)], 2 * BLEND * h)
+        return implicit.smooth_union([body.field(p, exact) - grow, implicit.cone_field(p, cone, looseness)],
+                                     2 * BLEND * h)
 
     return field
 

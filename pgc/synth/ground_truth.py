@@ -162,8 +162,8 @@ def read_ground_truth(root: str | os.PathLike) -> GroundTruth:
 def write_body_model(folder: str | os.PathLike, body: SynthBody) -> Path:
     """Write ``folder/body_model.npz`` (the skinned body, its model's name and phenotype) and return its path."""
     path = Path(folder) / "body_model.npz"
-    _save_npz(path, vertices=body.vertices, faces=body.faces, joints=body.joints, joint_names=np.array(body.joint_names),
-              parents=body.parents, weights=body.weights, model=np.array(body.model),
+    _save_npz(path, vertices=body.vertices, faces=body.faces, joints=body.joints,
+              joint_names=np.array(body.joint_names), parents=body.parents, weights=body.weights, model=np.array(body.model),
               phenotype_names=np.array(list(body.phenotype)),
               phenotype_values=np.array(list(body.phenotype.values()), np.float64))
     return path
