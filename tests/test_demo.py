@@ -17,12 +17,12 @@ def test_tiny_demo_runs_end_to_end_and_reports_every_variant(tmp_path, monkeypat
     monkeypatch.setattr(render, "choose_kernel", lambda *a: calls.append(1) or rule(*a))
     out = tmp_path / "demo"
     assert main(["demo", "--preset", "tiny", "--out", str(out), "--quiet"]) == 0
-    assert len(calls) <= 1  # one asset, three motions: the kernel rule runs once per process
+    assert len(calls) <= 1  # one asset, four motions: the kernel rule runs once per process
     metrics = json.loads((out / "metrics.json").read_text())
     for variant in ("hybrid", "3dgs_only", "pbr_only"):
         for name in ("psnr", "ssim", "fsim", "lpips"):
             assert np.isfinite(metrics[variant][name]), (variant, name)
-    assert set(metrics["motions"]) == {"goalpost", "spooky", "arms-up"}
+    assert set(metrics["motions"]) == {"goalpost", "spooky", "arms-up", "cmu:02_01"}  # the paper's and a CMU clip
     assert (out / "report.html").is_file() and any((out / "report").glob("*.png"))
     # the hybrid takes the far field's outline (silhouette = "far"); with the mesh as far field, the mesh's
     render = out / "runs" / "goalpost" / "render"

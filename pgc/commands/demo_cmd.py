@@ -11,7 +11,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "demo", help="the whole pipeline on the default synthetic scene",
         description="Generate a synthetic capture with ground truth, reconstruct the garment asset, simulate "
-                    "it on the paper's three test motions (goalpost, spooky, arms-up), render the hybrid and "
+                    "it on the paper's three test motions (goalpost, spooky, arms-up) and a captured CMU walk "
+                    "(cmu:02_01) on the capture's Anny body, render the hybrid and "
                     "the ablations, render the ground truth on the same simulated geometry, and evaluate. "
                     "Writes OUT/metrics.json and OUT/report.html. Cached: a rerun resumes.",
         epilog="presets (pgc synth's, with the settings of pgc/presets/demo_PRESET.toml, else demo_default.toml):\n"

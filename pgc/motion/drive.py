@@ -85,7 +85,8 @@ def load_clip(path: str | Path, options: ClipOptions = ClipOptions()) -> Clip:
 
 def clip_body_motion(path: str | Path, body, options: ClipOptions = ClipOptions(), seconds: float | None = None,
                      joint_map: dict[str, str] | None = None, arm_space_deg: float | None = None) -> BodyMotion:
-    """The vertices of ``body`` (a :class:`pgc.synth.body.BodyModel`) driven by the clip at ``path``, at
+    """The vertices of ``body`` (joint names, parents, rest joints, faces and a ``pose(rotations, translation)``
+    that skins them, as :class:`pgc.synth.body.SynthBody` has) driven by the clip at ``path``, at
     :data:`SIM_FPS`, frame 0 the capture pose; ``seconds`` cuts the clip (default: all of it);
     ``arm_space_deg``: see :func:`pgc.motion.retarget.keep_arms_clear` (None: its default; 0: arms as captured)."""
     from pgc.motion.retarget import ARM_SPACE_DEG, Rig, keep_arms_clear, resample, retarget, start_at_capture, trim
@@ -96,5 +97,5 @@ def clip_body_motion(path: str | Path, body, options: ClipOptions = ClipOptions(
     space = ARM_SPACE_DEG if arm_space_deg is None else arm_space_deg
     if space > 0:
         motion = keep_arms_clear(motion, rig, space)
-    vertices = body.pose(motion.rotations) + motion.root_translation[:, None, :]
+    vertices = body.pose(motion.rotations, motion.root_translation)
     return BodyMotion(vertices.astype(np.float32), body.faces, fps=motion.fps, name=Path(path).stem)

@@ -156,10 +156,12 @@ def make_capture(synth: dict[str, Any], folder: str, data: dict[str, Any], sourc
     from pgc.synth.render import scene_renderer
 
     start = time.perf_counter()
-    renderer = scene_renderer(_config(data, source))
+    cfg = _config(data, source)
+    renderer = scene_renderer(cfg)
     preset = get_preset(synth["preset"], framing=synth.get("framing"))
     generate(folder, preset, garment=synth.get("garment"), fabric=synth.get("fabric"), seed=synth["seed"],
-             looseness=synth.get("looseness"), detail=synth.get("detail"), fit=synth.get("fit"), renderer=renderer)
+             looseness=synth.get("looseness"), detail=synth.get("detail"), fit=synth.get("fit"), renderer=renderer,
+             body_model=cfg.create("body_model"))
     key = f"capture-{Path(folder).name.rsplit('-', 1)[1]}"
     return _finish(out, key, {"capture": folder, "seconds": time.perf_counter() - start})
 
