@@ -271,3 +271,15 @@ def test_sweep_records_and_tables_are_per_light(tmp_path):
     table = text_table(records, sweep.table).splitlines()
     assert "capture psnr" in table[0] and "low-key psnr" in table[0]
     assert table[1].split()[:3] == ["hybrid", "30", "27"]
+
+
+def test_the_demo_refuses_unknown_lights_and_relit_motions_before_any_work(tmp_path, capsys):
+    from pgc.pipeline.demo import run_demo
+
+    with pytest.raises(PGCConfigError, match="relit motions \\['moonwalk'\\]"):
+        run_demo(tmp_path / "d", "tiny", relit_motions=("moonwalk",))
+    capsys.readouterr()
+    assert main(["demo", "--preset", "tiny", "--out", str(tmp_path / "e"), "--lights", "moon", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unknown light 'moon'" in err[0], err
+    assert not (tmp_path / "d").exists() and not (tmp_path / "e").exists()

@@ -324,7 +324,8 @@ def _lights_section(relit: dict[str, list[RunView]], captured: list[RunView], f:
              "--light-rotation DEG</code>), next to ground truth rendered with the true material under the same "
              "light on the same geometry. The Gaussians of the near field keep the colours they were fitted "
              "under; only the far field is relit.</p>"]
-    means = {"capture": _light_means(captured)}
+    relit_motions = {v.motion for views in relit.values() for v in views}
+    means = {"capture": _light_means([v for v in captured if v.motion in relit_motions])}  # like with like
     for name, views in relit.items():
         light = EVAL_LIGHTS.get(name)
         record = render_light_record(views[0]) if views else None
@@ -337,9 +338,10 @@ def _lights_section(relit: dict[str, list[RunView]], captured: list[RunView], f:
         means[name] = _light_means(views)
     measured = {k: v for k, v in means.items() if v is not None}
     if measured:
-        parts.append("<h3>Metrics per light</h3><p class='note'>Mean over the motions evaluated under each light "
-                     "against truth under that light (restricted to the garment); &Delta;PSNR: the change from the "
-                     "capture light.</p>" + _lights_table(measured))
+        parts.append("<h3>Metrics per light</h3><p class='note'>Mean over the motions evaluated under the novel "
+                     f"lights ({html.escape(', '.join(sorted(relit_motions)))}), each against truth under its own "
+                     "light, restricted to the garment; &Delta;PSNR: the change from the capture light on the same "
+                     "motions.</p>" + _lights_table(measured))
     return "".join(parts)
 
 
