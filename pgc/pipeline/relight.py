@@ -66,7 +66,8 @@ def light_file(folder: Path, light: EvalLight) -> Path:
     from pgc.io.images import read_envmap, write_exr
     from pgc.synth.rig import relight_envmap
 
-    assert light.envmap is not None, "the capture light has no file"
+    if light.envmap is None:
+        raise ValueError(f"light '{light.name}' is the capture light: it has no environment map file")
     path = Path(folder) / f"{light.envmap}.exr"
     env = relight_envmap(ENVMAP_HEIGHT, light.envmap)
     if not (path.is_file() and np.array_equal(read_envmap(path), env)):
