@@ -103,11 +103,12 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
                            light: dict[str, Any] | None = None) -> list[dict[str, np.ndarray]]:
     """Ground-truth renders of the run's frames by ``cfg``'s scene renderer under ``light`` (a checked record of
     :func:`pgc.io.light_record.render_light`; default the capture light; an environment map is scaled by the
-    capture's true radiance and turned per frame), cached in ``RUN/gt/<ground_truth_key>``."""
+    capture's true radiance and turned per frame), cached in ``RUN/gt/<ground_truth_key>`` with the light's
+    public record (``light.json``)."""
     from pgc.io.asset import read_asset
     from pgc.io.capture import read_capture
     from pgc.io.images import read_envmap
-    from pgc.io.light_record import capture_record, identity, rotation_at
+    from pgc.io.light_record import GT_LIGHT_FILE, capture_record, identity, public, rotation_at
     from pgc.pipeline.transfer import embed, place
     from pgc.synth.frames import render_frames
     from pgc.synth.ground_truth import read_ground_truth
@@ -147,6 +148,7 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
                         renderer=renderer or scene_renderer(cfg))
     for p, frame in zip(paths, out):
         save_npz(p, **frame)
+    write_json(cache / GT_LIGHT_FILE, public(light, frames))  # which light, for the report
     return out
 
 
