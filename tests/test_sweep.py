@@ -127,6 +127,7 @@ def test_make_capture_passes_the_scene_spec_as_pgc_synth_does(tmp_path, monkeypa
     make_capture(spec | {"framing": None, "detail": None}, str(tmp_path / "captures" / "k-def"), {}, "(test)",
                  str(tmp_path))
     assert all(kw.pop("renderer").role == "scene_renderer" for _, kw in calls)  # the configuration's
+    assert all(kw.pop("body_model").role == "body_model" for _, kw in calls)
     # `pgc synth OUT --preset knit --fabric fleece --seed 2 --framing body --detail seams --fit loose --looseness 0.03`
     assert calls[0] == (get_preset("knit", framing="body"), {"garment": None, "fabric": "fleece", "seed": 2,
                                                             "looseness": 0.03, "detail": "seams", "fit": "loose"})
