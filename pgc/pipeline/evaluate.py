@@ -91,7 +91,7 @@ def _mode_key(cfg: RunConfig, mode: str) -> tuple[Any, ...]:
     if mode == "appearance":
         return ()
     settings = cfg.stage("eval")
-    return (mode, settings.truth_simulator, settings.truth_resolution)
+    return (mode, settings.truth_simulator, settings.truth_resolution, settings.truth_options)
 
 
 def check_scene_renderer_light(renderer: Any, record: dict[str, Any], cfg: RunConfig) -> None:

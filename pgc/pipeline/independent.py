@@ -7,7 +7,8 @@ mode nothing of the pipeline's simulation is used, as in the paper's evaluation:
 - rest garment: the capture's garment made again by the synthetic generator (:func:`pgc.synth.garments.make_garment`,
   the capture's garment kind, fit and looseness) at ``truth_resolution`` times finer edges than the capture's;
 - simulator: eval setting ``truth_simulator`` (default ``newton-vbd``, Vertex Block Descent in Newton) with that
-  implementation's own defaults: its cloth parameters, not the pipeline's (docs/simulation.md, "Independent truth");
+  implementation's own defaults (over which ``truth_options`` may set some): its cloth parameters, not the
+  pipeline's (docs/simulation.md, "Independent truth");
 - body: :func:`truth_body_motion`, the true body driven by the run's motion;
 - appearance: the capture's truth garment (its textures, fibres, detail) tied to the fine rest garment and carried
   along the fine simulation; nothing is aligned to the pipeline's garment.
@@ -73,7 +74,7 @@ def truth_rest_garment(capture_dir: Path, factor: float) -> Mesh:
 
 
 def truth_simulator(name: str, registry: Any = None) -> Any:
-    """The registered simulator ``name`` with its own default options (the truth's cloth)."""
+    """The registered simulator ``name`` (an :class:`pgc.registry.Implementation`), once available."""
     from pgc.registry import Registry
 
     registry = registry or Registry.discover()
@@ -94,7 +95,7 @@ def truth_simulation(run_dir: Path, capture_dir: Path, settings: Any, registry: 
     from pgc.pipeline.cache import array_key, content_key, file_key
 
     impl = truth_simulator(settings.truth_simulator, registry)
-    options = impl.validate_options({})
+    options = impl.validate_options(settings.truth_options, where="[stages.eval] truth_options")
     motion = truth_body_motion(run_dir, capture_dir)
     gt_dir = capture_dir / "ground_truth"
     key = content_key("truth-sim", TRUTH_SIM_VERSION, file_key(gt_dir / "scene.json"),

@@ -1,6 +1,8 @@
 """Stage ``eval``: metrics of every rendered variant against ground truth. Computed on every run (its ground
 truth renders are cached under ``RUN/gt/<key>``, :func:`pgc.pipeline.evaluate.ground_truth_key`)."""
 
+from typing import Any
+
 from pydantic import Field
 
 from pgc.options import Options, count
@@ -17,6 +19,8 @@ class EvalSettings(Options):
                                  "simulator of the truth garment, with its own default options")
     truth_resolution: float = Field(2.0, ge=1.0, le=4.0, description="independent mode: the truth rest garment's "
                                     "edges are this many times shorter than the capture garment's")
+    truth_options: dict[str, Any] = Field(default_factory=dict, description="independent mode: options of the "
+                                          "truth simulator over its defaults (empty: its own cloth)")
 
 
 STAGE = Stage(name="eval", command="eval", version="1", inputs=("render", "ground_truth"), outputs=("metrics.json",),
