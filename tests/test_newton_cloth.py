@@ -1,6 +1,6 @@
-"""``newton-vbd`` (backends/pgc_newton): the simulator contract, analytic cases (free fall, a draped cloth that
-settles, membrane strain against stiffness), the Warp graph against eager substeps, and agreement with the
-XPBD simulator on a drape (tolerance from docs/simulation.md, "Independent truth").
+"""``newton-vbd`` (backends/pgc_newton; its role contract runs in tests/test_conformance.py): analytic cases
+(free fall, a draped cloth that settles, membrane strain against stiffness), the Warp graph against eager
+substeps, and agreement with the XPBD simulator on a drape (tolerance from docs/simulation.md, "newton-vbd").
 
 Warp compiles Newton's kernels on first use (about 2 minutes on 2 cores; cached in ~/.cache/warp, which
 scripts/setup.sh fills), so the heavier cases are slow-marked.
@@ -11,7 +11,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pgc.testing.conformance import SimulatorConformance
 from pgc.types import BodyMotion, Mesh
 
 TOLERANCE_MEAN, TOLERANCE_MAX = 0.03, 0.08
@@ -42,12 +41,6 @@ def newton(**options):
     from pgc_newton.cloth import NewtonVBDSimulator
 
     return NewtonVBDSimulator({"settle_frames": 0, **options})
-
-
-class TestNewtonConformance(SimulatorConformance):
-    @pytest.fixture
-    def implementation(self):
-        return newton()
 
 
 def test_free_fall_follows_implicit_euler():
