@@ -47,7 +47,7 @@ def test_free_fall_follows_implicit_euler():
     """Far from the body, an unstretched cloth falls as implicit Euler integrates gravity: after k substeps of h,
     y drops by g h^2 k (k + 1) / 2, uniformly (no strain)."""
     cloth = patch(4, 0.1, 1.0)
-    far = table(3)
+    far = table(3, max_edge=1.0)
     far.vertices[:] += np.array([10.0, 0.0, 0.0], np.float32)
     sim = newton(substeps=10).simulate(cloth, far)
     g, h = 9.81, 1.0 / 300.0
