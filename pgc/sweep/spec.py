@@ -180,6 +180,7 @@ def _check_name(path: Path, key: str, name: Any) -> None:
 def _check_motions(path: Path, motions: list[str], root: Path) -> None:
     from pgc.errors import PGCDataError
     from pgc.io.motion import load_motion
+    from pgc.motion.amass import is_pose_npz, read_pose_arrays
     from pgc.motion.drive import SHIPPED_PREFIX, is_clip, load_clip, shipped_clip
     from pgc.synth.motions import MOTIONS
 
@@ -192,7 +193,9 @@ def _check_motions(path: Path, motions: list[str], root: Path) -> None:
                                                  f"shipped clip ({SHIPPED_PREFIX}NAME) nor a file (paths are "
                                                  "relative to the sweep file)")
         try:
-            if shipped or is_clip(m):
+            if not shipped and is_pose_npz(root / m):
+                read_pose_arrays(root / m)  # its skeleton comes from the configured body model, at run time
+            elif shipped or is_clip(root / m):
                 load_clip(shipped_clip(m) if shipped else root / m)
             else:
                 load_motion(root / m)
