@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from pgc.errors import PGCDataError
+from pgc.sampling import envmap_directions
 from pgc.types import Camera, Light, look_at_pose
 
 DEFAULT_RADIANCE = (1.0, 0.96, 0.9)
@@ -72,16 +73,6 @@ def capture_light(kind: str = "uniform", radiance: tuple[float, float, float] = 
     raise PGCDataError(f"unknown capture light '{kind}'; use one of: {', '.join(CAPTURE_LIGHTS)}")
 
 
-def _envmap_directions(height: int) -> tuple[np.ndarray, np.ndarray]:
-    """Directions (H, 2H, 3) of a lat-long map's pixel centres (pgc.types.Light convention) and their solid
-    angles (H, 2H), steradians."""
-    theta = (np.arange(height) + 0.5) / height * np.pi  # from +Y
-    phi = (np.arange(2 * height) + 0.5) / (2 * height) * 2 * np.pi
-    th, ph = np.meshgrid(theta, phi, indexing="ij")
-    d = np.stack([np.sin(th) * np.sin(ph), np.cos(th), -np.sin(th) * np.cos(ph)], axis=-1)
-    return d, np.sin(th) * (np.pi / height) * (np.pi / height)
-
-
 def sky_sun_envmap(height: int = 64) -> np.ndarray:
     """The sky-sun capture environment (height, 2 height, 3) float32: sky radiance 0.2 below the horizon
     rising to 1 at the zenith, tinted (0.8, 0.9, 1.1); a sun disc of ``SUN_RADIUS_DEG`` (at least one pixel)
@@ -89,7 +80,8 @@ def sky_sun_envmap(height: int = 64) -> np.ndarray:
     upward face; the whole scaled to mean radiance 1 over the sphere (solid-angle weighted)."""
     if height < 8:
         raise PGCDataError(f"sky_sun_envmap: need a height of at least 8 pixels, got {height}")
-    d, solid = _envmap_directions(height)
+    d, solid = envmap_directions(height, 2 * height)
+    d, solid = d.reshape(height, 2 * height, 3), solid.reshape(height, 2 * height)
     up = d[..., 1]
     sky = (0.2 + 0.8 * np.clip(up, 0.0, 1.0))[..., None] * np.array([0.8, 0.9, 1.1])
     e, a = np.deg2rad(SUN_ELEVATION_DEG), np.deg2rad(SUN_AZIMUTH_DEG)
@@ -109,7 +101,7 @@ def relight_envmap(height: int = 64, kind: str = "sky", seed: int = 0) -> np.nda
     :class:`pgc.types.Light` (latitude-longitude, +Y up). kind 'sky': bright zenith, warm sun, dark ground;
     'studio': two soft area lights on a grey background."""
     rng = np.random.default_rng(seed)
-    d, _ = _envmap_directions(height)
+    d = envmap_directions(height, 2 * height)[0].reshape(height, 2 * height, 3)
     if kind == "sky":
         sky = np.array([0.35, 0.5, 0.8]) * np.clip(d[..., 1:2], 0, 1) ** 0.5 + np.array([0.9, 0.85, 0.8]) * 0.2
         ground = np.array([0.12, 0.1, 0.08])
