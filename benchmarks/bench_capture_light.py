@@ -2,7 +2,8 @@
 """Does the capture light let the material fit recover the in-family controls' pgc-sheen parameters?
 
     python benchmarks/bench_capture_light.py --work DIR [--fabrics F ...] [--seeds 0 1] [--lights uniform sky-sun]
-        [--mode truth|pipeline] [--views 6] [--resolution 64] [--config FILE.toml] [--out FILE.json]
+        [--mode truth|pipeline] [--views 6] [--resolution 64] [--spp 16] [--framing body|garment]
+        [--config FILE.toml] [--out FILE.json]
 
 For each fabric x seed x capture light: a synthetic capture (``tiny`` preset, overridable views and size) is
 generated into ``DIR`` (kept and reused), then the material is fitted (``stages.material`` of ``--config``
@@ -42,14 +43,14 @@ def texture_mean(texture: np.ndarray) -> np.ndarray:
     return t[covered].mean(0)
 
 
-def capture(work: Path, fabric: str, seed: int, light: str, views: int, resolution: int, cfg) -> Path:
+def capture(work: Path, fabric: str, seed: int, light: str, args: argparse.Namespace, cfg) -> Path:
     from pgc.synth.generate import generate, get_preset
     from pgc.synth.render import scene_renderer
 
-    folder = work / f"{fabric}_s{seed}_{light}_v{views}_r{resolution}"
+    folder = work / f"{fabric}_s{seed}_{light}_v{args.views}_r{args.resolution}_spp{args.spp}_{args.framing}"
     if not (folder / "ground_truth" / "scene.json").is_file():
-        generate(folder, get_preset("tiny", views=views, resolution=resolution), fabric=fabric, seed=seed,
-                 capture_light=light, renderer=scene_renderer(cfg))
+        preset = get_preset("tiny", views=args.views, resolution=args.resolution, spp=args.spp, framing=args.framing)
+        generate(folder, preset, fabric=fabric, seed=seed, capture_light=light, renderer=scene_renderer(cfg))
     return folder
 
 
@@ -87,6 +88,8 @@ def main() -> None:
     ap.add_argument("--mode", choices=("truth", "pipeline"), default="truth")
     ap.add_argument("--views", type=int, default=6)
     ap.add_argument("--resolution", type=int, default=64)
+    ap.add_argument("--spp", type=int, default=16)
+    ap.add_argument("--framing", choices=("body", "garment"), default="body")
     ap.add_argument("--config", default=None, help="TOML merged over the tiny demo's settings")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
@@ -99,7 +102,7 @@ def main() -> None:
     for fabric in args.fabrics:
         for seed in args.seeds:
             for light in args.lights:
-                folder = capture(args.work, fabric, seed, light, args.views, args.resolution, cfg)
+                folder = capture(args.work, fabric, seed, light, args, cfg)
                 gt = read_ground_truth(folder)
                 if args.mode == "truth":
                     params, radiance, base, seconds = fit_truth(folder, cfg)

@@ -11,8 +11,7 @@ Values cross the process boundary as float64 numpy arrays: the optimised paramet
 gradient of every parameter out. The light's RGB radiance sets the emitter: a constant's radiance, or an
 environment map's pixels as the map of unit radiance times the RGB radiance (a differentiable expression, so
 ``prb`` returns its gradient from its own adjoint pass, decorrelated from the primal image: multiplying the
-rendered image by the radiance instead gives a gradient biased by the image's Monte Carlo variance, which
-drove the radiance 30 % low at 4 spp).
+rendered image by the radiance instead gives a gradient biased by the image's Monte Carlo variance: docs/pbr.md).
 """
 
 from __future__ import annotations
