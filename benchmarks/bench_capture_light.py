@@ -54,8 +54,8 @@ def capture(work: Path, fabric: str, seed: int, light: str, args: argparse.Names
     return folder
 
 
-def fit_truth(folder: Path, cfg) -> tuple[dict, np.ndarray, np.ndarray, float]:
-    """Fit on the true geometry and base colour: (params, radiance, base mean, seconds)."""
+def fit_truth(folder: Path, cfg) -> tuple[dict, np.ndarray, np.ndarray, float, dict]:
+    """Fit on the true geometry and base colour: (params, radiance, base mean, seconds, fit figures)."""
     from pgc.io.capture import read_capture
     from pgc.pipeline.garment import with_occluder
     from pgc.synth.ground_truth import read_ground_truth
@@ -67,16 +67,17 @@ def fit_truth(folder: Path, cfg) -> tuple[dict, np.ndarray, np.ndarray, float]:
     start = time.perf_counter()
     fit = renderer.fit(cap, with_occluder(gt.garment, gt.body), init, cfg.stage("material"))
     return fit.material.params, fit.light.radiance, texture_mean(gt.material.base_color), \
-        time.perf_counter() - start
+        time.perf_counter() - start, fit.figures
 
 
-def fit_pipeline(folder: Path, out: Path, cfg) -> tuple[dict, np.ndarray, np.ndarray, float]:
+def fit_pipeline(folder: Path, out: Path, cfg) -> tuple[dict, np.ndarray, np.ndarray, float, dict]:
     from pgc.io.timings import read_timings
     from pgc.pipeline.reconstruct import reconstruct
 
     asset = reconstruct(folder, out, cfg)
     seconds = read_timings(out)["seconds"]["material"]
-    return asset.material.params, asset.light.radiance, texture_mean(asset.material.base_color), seconds
+    return asset.material.params, asset.light.radiance, texture_mean(asset.material.base_color), seconds, \
+        asset.figures.get("material", {})
 
 
 def main() -> None:
@@ -105,14 +106,15 @@ def main() -> None:
                 folder = capture(args.work, fabric, seed, light, args, cfg)
                 gt = read_ground_truth(folder)
                 if args.mode == "truth":
-                    params, radiance, base, seconds = fit_truth(folder, cfg)
+                    params, radiance, base, seconds, figures = fit_truth(folder, cfg)
                 else:
-                    params, radiance, base, seconds = fit_pipeline(folder, folder.with_name(folder.name + "_run"),
-                                                                  cfg)
+                    params, radiance, base, seconds, figures = fit_pipeline(
+                        folder, folder.with_name(folder.name + "_run"), cfg)
                 true = gt.material.params
                 gauge = np.asarray(radiance) / gt.light.radiance
                 true_base = texture_mean(gt.material.base_color)
                 row = {"fabric": fabric, "seed": seed, "light": light, "mode": args.mode, "seconds": seconds,
+                       "iterations": figures.get("iterations"), "stopped": figures.get("stopped"),
                        "fit": {k: v for k, v in params.items() if k != "base_color"},
                        "true": true, "radiance": np.asarray(radiance).tolist(),
                        "base_mean": base.tolist(), "true_base_mean": true_base.tolist(),
