@@ -23,3 +23,17 @@ def fibonacci_sphere(n: int) -> np.ndarray:
     r = np.sqrt(np.maximum(1.0 - y * y, 0.0))
     phi = k * np.pi * (3.0 - np.sqrt(5.0))
     return np.stack([r * np.cos(phi), y, r * np.sin(phi)], axis=1)
+
+
+def envmap_directions(height: int, width: int, rotation_deg: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """World directions (H*W, 3) of the pixel centres of a lat-long map and their solid angles (H*W,)."""
+    u = (np.arange(width) + 0.5) / width
+    v = (np.arange(height) + 0.5) / height
+    U, Vv = np.meshgrid(u, v)
+    phi, theta = 2 * np.pi * U, np.pi * Vv
+    # local: atan2(x, -z) = phi, acos(y) = theta
+    local = np.stack([np.sin(theta) * np.sin(phi), np.cos(theta), -np.sin(theta) * np.cos(phi)], -1).reshape(-1, 3)
+    a = np.radians(rotation_deg)
+    rot = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
+    solid = (np.sin(theta) * (np.pi / height) * (2 * np.pi / width)).reshape(-1)
+    return local @ rot.T, solid

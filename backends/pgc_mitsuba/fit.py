@@ -1,5 +1,7 @@
 """Material fitting by differentiable path tracing (Mitsuba ``prb``): the BRDF's own parameters and the
-RGB radiance of the constant environment light, over all views of a capture; the base colour is fixed.
+RGB radiance of the light, over all views of a capture; the base colour is fixed. The light's shape is the
+capture's recorded light (its environment map and rotation) or a constant environment
+(:func:`pgc.brdfs.fitdata.fit_light`); only its RGB radiance is fitted, from the recorded radiance.
 
 Adam (lr 0.01 as in the paper) on the BRDF parameters mapped to [0, 1] by their bounds (clamped after each
 step; one lr moves every parameter the same fraction of its range: Disney's sheen spans [0, 5], and
@@ -29,7 +31,7 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from pgc.brdfs.fitdata import FitView, prepare_views, psnr_from_mse, split_occluders
+from pgc.brdfs.fitdata import FitLight, FitView, fit_light, prepare_views, psnr_from_mse, split_occluders
 from pgc.cores import allotted_cores
 from pgc.brdfs.parameters import PARAMETERS
 from pgc.errors import PGCDataError
@@ -51,8 +53,9 @@ def resolve_settings(settings: Any) -> MaterialFitSettings:
 
 def fit_material(renderer: Any, capture: Capture, mesh: Mesh, material: Material, settings: Any = None,
                  reporter: Reporter | None = None) -> MaterialFit:
-    """Fit ``material``'s BRDF parameters and the constant light to all views of ``capture``. With
-    ``settings.select_model`` all models are fitted and the simplest adequate one returned."""
+    """Fit ``material``'s BRDF parameters and the light's radiance to all views of ``capture`` (under the
+    light of ``settings.light``). With ``settings.select_model`` all models are fitted and the simplest
+    adequate one returned."""
     settings = resolve_settings(settings)
     reporter = reporter or Reporter.silent()
     if settings.select_model:
@@ -61,9 +64,10 @@ def fit_material(renderer: Any, capture: Capture, mesh: Mesh, material: Material
         return fit_and_select(renderer, capture, mesh, material, settings, reporter).fit
     if material.brdf not in PARAMETERS:
         raise PGCDataError(f"material.brdf '{material.brdf}' cannot be fitted; use one of {sorted(PARAMETERS)}")
+    light = fit_light(capture, settings.light)
     fit_views = prepare_views(capture, settings.max_image_side)
     with one_jit_thread():
-        return _optimise(renderer, fit_views, capture, mesh, material, settings, reporter)
+        return _optimise(renderer, fit_views, capture, mesh, material, light, settings, reporter)
 
 
 @contextlib.contextmanager
@@ -105,7 +109,7 @@ def _films(fit_views: list[FitView], settings: MaterialFitSettings) -> list[list
 
 
 def _optimise(renderer: Any, fit_views: list[FitView], capture: Capture, mesh: Mesh, material: Material,
-              settings: MaterialFitSettings, reporter: Reporter) -> MaterialFit:
+              light: FitLight, settings: MaterialFitSettings, reporter: Reporter) -> MaterialFit:
     mi = mitsuba()
 
     start_time = time.perf_counter()
@@ -115,20 +119,19 @@ def _optimise(renderer: Any, fit_views: list[FitView], capture: Capture, mesh: M
     params = mi.traverse(mi.load_dict(scene_dict(garment, material, Light(np.ones(3)), integrator)))
     keys = list(params.keys())
     bounds = {_find(keys, f"bsdf.{p.name}"): (p.lower, p.upper, p.name) for p in PARAMETERS[material.brdf]}
-    light_key = _find(keys, "light.radiance.value")
     initial = {key: np.asarray(params[key], np.float64).reshape(-1) for key in bounds}
     spec = SceneSpec(garment, occluder, material, integrator, renderer.options.occluder_albedo,
-                     renderer.options.smooth_normals, [*bounds, light_key], settings.spp)
+                     renderer.options.smooth_normals, list(bounds), settings.spp, light.shape)
     films = _films(fit_views, settings)
     # the optimised variables as one vector: each parameter mapped to [0, 1] by its bounds, then the log of
-    # the light radiance (radiance 1: the paper's initial value)
+    # the light radiance (from the recorded radiance, else 1: the paper's initial value)
     sizes = [initial[key].size for key in bounds]
     lows = np.array([bounds[key][0] for key, n in zip(bounds, sizes) for _ in range(n)], np.float64)
     spans = np.array([bounds[key][1] - bounds[key][0] for key, n in zip(bounds, sizes) for _ in range(n)],
                      np.float64)
     n_unit = int(sum(sizes))
     start = np.array([value for key in bounds for value in initial[key]], np.float64)
-    x = np.concatenate([np.clip((start - lows) / spans, 0.0, 1.0), np.zeros(3)])
+    x = np.concatenate([np.clip((start - lows) / spans, 0.0, 1.0), np.log(np.maximum(light.radiance, 1e-6))])
     m, v = np.zeros_like(x), np.zeros_like(x)
 
     def values(state: np.ndarray) -> list[np.ndarray]:
@@ -196,5 +199,6 @@ def _optimise(renderer: Any, fit_views: list[FitView], capture: Capture, mesh: M
                "films": len(films), "shards": settings.shards,
                "image_sizes": [list(k) for k in sorted({(v.camera.height, v.camera.width) for v in fit_views
                                                       if v.weight.any()})],
-               "drift": drift, "loss_history": [float(h) for h in history[:: max(1, len(history) // 200)]]}
-    return MaterialFit(out_material, Light(radiance=radiance), figures)
+               "drift": drift, "loss_history": [float(h) for h in history[:: max(1, len(history) // 200)]],
+               "light": light.record()}
+    return MaterialFit(out_material, light.light(radiance), figures)

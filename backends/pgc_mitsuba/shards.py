@@ -8,7 +8,10 @@ spawned worker processes, and the losses and gradients are added in shard order.
 after the other in this process when the allotment is one core, with the same bytes as a result.
 
 Values cross the process boundary as float64 numpy arrays: the optimised parameters in, the loss and the
-gradient of every parameter out.
+gradient of every parameter out. The light's RGB radiance sets the emitter: a constant's radiance, or an
+environment map's pixels as the map of unit radiance times the RGB radiance (a differentiable expression, so
+``prb`` returns its gradient from its own adjoint pass, decorrelated from the primal image: multiplying the
+rendered image by the radiance instead gives a gradient biased by the image's Monte Carlo variance: docs/pbr.md).
 """
 
 from __future__ import annotations
@@ -52,21 +55,26 @@ class SceneSpec:
     occluder_albedo: float
     smooth_normals: bool
     keys: list[str]
-    """Scene parameters whose values are set and whose gradients are returned, in order."""
+    """Scene parameters whose values are set and whose gradients are returned, in order (the radiance follows
+    them in the values and gradients)."""
     spp: int
+    light: Light
+    """The light's shape: a constant or an environment map (with its rotation) at unit radiance."""
 
 
 class ShardScene:
-    """A Mitsuba scene with a set of shard films; renders one with given parameter values, returns the loss
-    (the weighted squared error over ``count``) and the gradient of every parameter in ``spec.keys``."""
+    """A Mitsuba scene with a set of shard films; renders one with given parameter values (those of
+    ``spec.keys``, then the RGB radiance), returns the loss (the weighted squared error over ``count``) and the
+    gradient of every value."""
 
     def __init__(self, spec: SceneSpec, films: list[ShardFilm]):
         mi = mitsuba()
         self.spec = spec
-        self.scene = mi.load_dict(scene_dict(spec.garment, spec.material, Light(np.ones(3)), spec.integrator,
+        self.scene = mi.load_dict(scene_dict(spec.garment, spec.material, spec.light, spec.integrator,
                                              spec.occluder, spec.occluder_albedo, spec.smooth_normals))
         self.params = mi.traverse(self.scene)
         self.kinds = {key: type(self.params[key]) for key in spec.keys}
+        self.unit_envmap = mi.TensorXf(self.params["light.data"]) if spec.light.envmap is not None else None
         self.films = [(pinhole_sensor(f.cameras, spec.spp), mi.TensorXf(f.target), mi.TensorXf(f.weight[..., None]),
                        f.count) for f in films]
 
@@ -74,18 +82,30 @@ class ShardScene:
         mi = mitsuba()
         import drjit as dr
 
-        for key, value in zip(self.spec.keys, values):
+        *scene_values, radiance = values
+        for key, value in zip(self.spec.keys, scene_values):
             variable = self.kinds[key](*[float(x) for x in np.asarray(value).reshape(-1)])
             dr.make_opaque(variable)  # a literal would be baked into the kernel: a new compilation every step
             self.params[key] = variable
             dr.enable_grad(self.params[key])
-        self.params.update()
         sensor, target, weight, count = self.films[film]
+        rgb = [float(x) for x in np.asarray(radiance).reshape(3)]
+        if self.unit_envmap is None:
+            gain = mi.Color3f(*rgb)
+            dr.make_opaque(gain)
+            dr.enable_grad(gain)
+            self.params["light.radiance.value"] = gain
+        else:
+            gain = mi.TensorXf(np.asarray(rgb, np.float32), shape=(1, 1, 3))
+            dr.make_opaque(gain)
+            dr.enable_grad(gain)
+            self.params["light.data"] = self.unit_envmap * gain
+        self.params.update()
         img = mi.render(self.scene, self.params, sensor=sensor, spp=self.spec.spp, seed=seed, seed_grad=seed_grad)
         loss = dr.sum(weight * dr.square(img[:, :, :3] - target), axis=None) / count
         dr.backward(loss)
         grads = [np.asarray(dr.grad(self.params[key]), dtype=np.float64).reshape(-1) for key in self.spec.keys]
-        return float(loss.array[0]), grads
+        return float(loss.array[0]), [*grads, np.asarray(dr.grad(gain), dtype=np.float64).reshape(-1)]
 
 
 def split_film(cameras: list[Camera], targets: list[np.ndarray], weights: list[np.ndarray],

@@ -9,7 +9,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from pgc.errors import PGCDataError
-from pgc.types import Camera, Capture, Mesh, View
+from pgc.types import Camera, Capture, Light, Mesh, View
 
 INTERIOR = 0.999
 """A pixel counts when at least this fraction of it and of each of its 8 neighbours is garment: silhouette
@@ -72,6 +72,47 @@ def prepare_views(capture: Capture, max_side: int, views: list[int] | None = Non
         raise PGCDataError("capture: no view has garment pixels (check the segmentation labels "
                            f"{capture.labels} and the masks)")
     return out
+
+
+@dataclass(frozen=True)
+class FitLight:
+    """The light a material fit renders under: its shape and where it came from."""
+
+    shape: Light
+    """Unit radiance times the capture's environment map (with its rotation), or a unit constant."""
+    radiance: np.ndarray
+    """(3,) the initial RGB radiance: the capture's recorded one, else 1 (the paper's initial value)."""
+    source: str
+    """'capture' (the capture's recorded light) or 'constant' (a constant environment assumed)."""
+
+    def light(self, radiance: np.ndarray) -> Light:
+        """The shape at RGB ``radiance``."""
+        return Light(np.asarray(radiance, np.float64), self.shape.envmap, self.shape.rotation_deg)
+
+    def record(self) -> dict:
+        """For the fit's figures: the source, the kind of light and the environment map's size."""
+        env = self.shape.envmap
+        return {"source": self.source, "kind": "constant" if env is None else "envmap",
+                "envmap_shape": None if env is None else list(np.shape(env)),
+                "rotation_deg": float(self.shape.rotation_deg)}
+
+
+def fit_light(capture: Capture, mode: str) -> FitLight:
+    """The light a material fit of ``capture`` renders under, for ``MaterialFitSettings.light`` ``mode``
+    ('auto', 'capture' or 'constant'; see there). 'capture' on a capture that records no light is a
+    :class:`PGCDataError` naming the fix."""
+    known = capture.light
+    if mode == "capture" and known is None:
+        where = capture.root or "the capture"
+        raise PGCDataError(f"{where}: stages.material.light = 'capture' but the capture records no light "
+                           "(transforms.json has no 'pgc_light'); set stages.material.light = 'auto' or "
+                           "'constant' to fit a constant environment, or record the capture's light")
+    if mode not in ("auto", "capture", "constant"):
+        raise PGCDataError(f"stages.material.light: unknown mode '{mode}'; use 'auto', 'capture' or 'constant'")
+    if known is None or mode == "constant":
+        return FitLight(Light(np.ones(3)), np.ones(3), "constant")
+    return FitLight(Light(np.ones(3), known.envmap, known.rotation_deg), np.asarray(known.radiance, np.float64),
+                    "capture")
 
 
 def masked_mse(pred: np.ndarray, target: np.ndarray, weight: np.ndarray) -> float:

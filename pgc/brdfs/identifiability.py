@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from pgc.brdfs.maths import eval_pgc_sheen, tangent_frame
-from pgc.sampling import fibonacci_sphere
+from pgc.sampling import envmap_directions, fibonacci_sphere
 
 PARAMETER_NAMES = ("base_r", "base_g", "base_b", "light_r", "light_g", "light_b", "roughness",
                    "sheen_r", "sheen_g", "sheen_b", "sheen_roughness")
@@ -103,6 +103,14 @@ def key_light_frames(elevations_azimuths: tuple[tuple[float, float], ...] = ((20
     surface facing it radiance 1, as the uniform environment does)."""
     return [Frame(direction(e, a)[None], np.full((1, 3), irradiance), f"key {e:g}/{a:g}")
             for e, a in elevations_azimuths]
+
+
+def envmap_frame(envmap: np.ndarray, rotation_deg: float = 0.0, name: str = "envmap") -> Frame:
+    """An environment map (H, 2H, 3; :class:`pgc.types.Light` convention, rotated ``rotation_deg`` about +Y) as
+    a frame: one direction per pixel, irradiance = radiance x the pixel's solid angle."""
+    env = np.asarray(envmap, np.float64)
+    directions, solid = envmap_directions(env.shape[0], env.shape[1], rotation_deg)
+    return Frame(directions, env.reshape(-1, 3) * solid[:, None], name)
 
 
 def lightings(n_dirs: int = 400) -> dict[str, list[Frame]]:

@@ -65,6 +65,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                                                "preset's)")
     p.add_argument("--framing", default=None, choices=("body", "garment"),
                    help="what the cameras frame: the whole body or the garment (default: the preset's)")
+    p.add_argument("--capture-light", default=None,
+                   help="the dome's light, recorded in the capture for the material fit: uniform (a constant "
+                        "environment) or sky-sun (a sky and a sun: identifies the sheen; docs/pbr.md) "
+                        "(default: the preset's)")
     p.add_argument("--seed", type=int, default=0, help="random seed; the same seed gives identical files")
     p.add_argument("--looseness", type=float, default=None,
                    help="garment clearance from the body, metres (resting fit: at the waist) (default: the preset's)")
@@ -105,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
     with naming_output(args.paths[0]):
         capture = generate(args.paths[0], preset, garment=args.garment, fabric=args.fabric, seed=args.seed,
                            looseness=args.looseness, reporter=reporter, detail=args.detail, fit=args.fit,
-                           renderer=renderer, body_model=cfg.create("body_model"))
+                           capture_light=args.capture_light, renderer=renderer, body_model=cfg.create("body_model"))
     summary = {"out": capture.root, "views": len(capture.views), "resolution": preset.resolution,
                "spp": preset.spp, "contact_sheet": f"{capture.root}/contact_sheet.png",
                "ground_truth": f"{capture.root}/ground_truth", "seconds": reporter.timings}

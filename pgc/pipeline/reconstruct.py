@@ -4,7 +4,7 @@ Stages (declared in :mod:`pgc.stages`; folder ``OUT/stages/<name>``, options ``[
 (reconstructor: labelled full-body mesh with UVs) -> ``garment`` (the garment sub-mesh with its own UV atlas) ->
 ``fit_splats`` (mesh-embedded Gaussians fitted on the full mesh, then only the garment's kept) -> ``base_color``
 (albedo estimator + colour correction + UV merge on the garment) -> ``material`` (BRDF parameters and the
-constant light, fitted by the PBR renderer) -> the asset directory ``OUT``.
+light's radiance, fitted by the PBR renderer under the capture's light) -> the asset directory ``OUT``.
 """
 
 from __future__ import annotations
@@ -89,7 +89,8 @@ def compute_base_color(ctx: Context, folder: Path) -> tuple[np.ndarray, dict[str
 
     settings, full = ctx.cfg.stage("base_color"), ctx.values["mesh"]
     estimator = ctx.implementation("albedo_estimator")
-    shading = white_shading(ctx.cfg, full) if getattr(estimator, "needs_shading", False) else None
+    shading = white_shading(ctx.cfg, full, ctx.inputs.capture.light) \
+        if getattr(estimator, "needs_shading", False) else None
     res = build_base_color(ctx.inputs.capture, ctx.values["garment"][0], estimator, settings.texture_size,
                            settings.num_views, occluder=full, shading=shading, reporter=ctx.reporter)
     np.save(folder / "base_color.npy", res.texture)
@@ -101,7 +102,8 @@ def load_base_color(ctx: Context, folder: Path) -> np.ndarray:
 
 
 def compute_material(ctx: Context, folder: Path) -> tuple[tuple[Material, Light], dict[str, Any]]:
-    """The BRDF's parameters and the constant light, fitted by the PBR renderer."""
+    """The BRDF's parameters and the light's radiance, fitted by the PBR renderer under the capture's light."""
+    from pgc.io import images as imgio
     from pgc.io.timings import split_timings
 
     capture, full, piece = ctx.inputs.capture, ctx.values["mesh"], ctx.values["garment"][0]
@@ -110,15 +112,25 @@ def compute_material(ctx: Context, folder: Path) -> tuple[tuple[Material, Light]
     # the body casts shadows on the garment: the renderer splits it off by label
     scene = with_occluder(piece, body_occluder(full, capture.garment_label_ids))
     fit = renderer.fit(capture, scene, init, ctx.cfg.stage("material"), ctx.reporter)
+    light: dict[str, Any] = {"radiance": fit.light.radiance.tolist(), "rotation_deg": float(fit.light.rotation_deg),
+                             "envmap": None}
+    if fit.light.envmap is not None:
+        light["envmap"] = "light_envmap.exr"
+        imgio.write_exr(folder / light["envmap"], fit.light.envmap)
     write_json(folder / "material.json",  # the fit's seconds stay in stage.json: the same bytes every run
-               {"brdf": fit.material.brdf, "params": fit.material.params,
-                "light": {"radiance": fit.light.radiance.tolist()}, "figures": split_timings(fit.figures)[0]})
+               {"brdf": fit.material.brdf, "params": fit.material.params, "light": light,
+                "figures": split_timings(fit.figures)[0]})
     return (fit.material, fit.light), fit.figures
 
 
 def load_material(ctx: Context, folder: Path) -> tuple[Material, Light]:
+    from pgc.io import images as imgio
+
     d = read_json(folder / "material.json")
-    return Material(d["brdf"], d["params"], ctx.values["base_color"]), Light(np.asarray(d["light"]["radiance"]))
+    light = d["light"]
+    envmap = imgio.read_envmap(folder / light["envmap"]) if light.get("envmap") else None
+    return (Material(d["brdf"], d["params"], ctx.values["base_color"]),
+            Light(np.asarray(light["radiance"]), envmap, float(light.get("rotation_deg", 0.0))))
 
 
 STAGES = ((mesh.STAGE, Step(compute_mesh, load_full_mesh)),
@@ -159,14 +171,17 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
     return asset
 
 
-def white_shading(cfg: RunConfig, mesh: Mesh):
-    """A function giving the white-albedo shading of ``mesh`` in a view (unit constant light)."""
+def white_shading(cfg: RunConfig, mesh: Mesh, capture_light: Light | None = None):
+    """A function giving the white-albedo shading of ``mesh`` in a view under the capture's light shape at unit
+    radiance (its environment map and rotation; a constant where the capture records none)."""
     renderer = cfg.create("pbr_renderer")
     white = Material("lambertian", {}, None)
     white.params["base_color"] = [1.0, 1.0, 1.0]
+    light = Light(np.ones(3)) if capture_light is None else Light(np.ones(3), capture_light.envmap,
+                                                                  capture_light.rotation_deg)
 
     def shade(view):
-        return renderer.render(mesh, white, Light(np.ones(3)), view.camera).color
+        return renderer.render(mesh, white, light, view.camera).color
 
     return shade
 

@@ -8,8 +8,11 @@ Contract
   UV atlas, (H, W, 3), plus the (H, W) coverage of the atlas (0 outside charts). Shadowing and indirect
   light are included where the implementation supports them (documented per implementation);
   ``occluder`` (e.g. the body under a garment) casts shadows on the mesh but is not itself returned.
-- :meth:`fit`: fits the parameters of ``brdf`` (not the base-colour texture) and the RGB radiance of a
-  constant environment light to ``capture`` on ``mesh``; returns the fitted material, light and figures.
+- :meth:`fit`: fits the parameters of ``brdf`` (not the base-colour texture) and the RGB radiance of the
+  light to ``capture`` on ``mesh``; returns the fitted material, light and figures. The light's shape is the
+  capture's recorded light (an environment map and its rotation, or a constant) or, where the capture records
+  none, a constant environment (:func:`pgc.brdfs.fitdata.fit_light`, ``MaterialFitSettings.light``); the
+  returned light has that shape and the fitted radiance.
 - Inputs are checked before any implementation's :meth:`render` or :meth:`render_texture` runs
   (:func:`check_shading_inputs`): a NaN or Inf in ``material.base_color``, ``material.params``,
   ``light.radiance``, ``light.envmap`` or ``light.rotation_deg`` raises :class:`pgc.errors.PGCDataError` naming
@@ -20,7 +23,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, Literal
 
 import numpy as np
 from pydantic import Field
@@ -39,9 +42,15 @@ MAX_STEPS = 1_000_000
 
 
 class MaterialFitSettings(Options):
-    """Settings of :meth:`PBRRenderer.fit` (the ``[stages.material]`` table): BRDF parameters and the constant
-    light fitted by differentiable rendering (paper: Adam, lr 0.01, 4 spp, 3000 iterations; here stopped when
-    the loss stops improving)."""
+    """Settings of :meth:`PBRRenderer.fit` (the ``[stages.material]`` table): BRDF parameters and the light's
+    radiance fitted by differentiable rendering (paper: Adam, lr 0.01, 4 spp, 3000 iterations; here stopped
+    when the loss stops improving)."""
+
+    light: Literal["auto", "capture", "constant"] = "auto"
+    """The light the fit renders under (its RGB radiance is fitted): 'capture', the capture's recorded light
+    (environment map and rotation; refused when the capture records none); 'constant', a constant environment
+    whatever the capture records (the paper's assumption); 'auto', the capture's light where it records one,
+    else a constant."""
 
     lr: float = Field(0.01, gt=0.0)
     """Adam learning rate (paper: 0.01). Scalars and colours are optimised directly; the light radiance

@@ -57,7 +57,7 @@ def random_light(rng: np.random.Generator):
 
     kind = int(rng.integers(3))
     if kind == 0:
-        return rig.capture_light(tuple(np.asarray(rig.DEFAULT_RADIANCE) * rng.uniform(0.6, 1.4)))
+        return rig.capture_light(radiance=tuple(np.asarray(rig.DEFAULT_RADIANCE) * rng.uniform(0.6, 1.4)))
     tint = rng.uniform(0.7, 1.3, 3)
     if kind == 1:
         return Light(radiance=tint * rng.uniform(0.6, 1.4))

@@ -61,6 +61,9 @@ class SynthPreset:
     """Garment fit (:data:`pgc.synth.garments.FITS`): 'loose' or 'resting' (hangs from the shoulders)."""
     looseness: float = 0.03
     """Garment clearance from the body, metres ('resting': at the waist and below)."""
+    capture_light: str = "uniform"
+    """The dome's light (:data:`pgc.synth.rig.CAPTURE_LIGHTS`: 'uniform' or 'sky-sun'), recorded in the
+    capture (transforms.json ``pgc_light``, ground_truth/light.json) for the material fit."""
 
 
 PRESETS: dict[str, SynthPreset] = {
@@ -116,14 +119,14 @@ def garment_gap(body: Mesh, garment: Mesh) -> dict[str, float]:
 
 def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garment: str | None = None,
              fabric: str | None = None, seed: int = 0, looseness: float | None = None,
-             reporter: Reporter | None = None, detail: str | None = None, fit: str | None = None, *,
-             renderer: SceneRenderer, body_model: BodyModel) -> Capture:
+             reporter: Reporter | None = None, detail: str | None = None, fit: str | None = None,
+             capture_light: str | None = None, *, renderer: SceneRenderer, body_model: BodyModel) -> Capture:
     """Generate a synthetic capture into ``out``, rendered by ``renderer`` (the configuration's, see
     :func:`pgc.synth.render.scene_renderer`), of a body of ``body_model`` (the configuration's ``[body_model]``)
     with the phenotype :func:`pgc.synth.body.draw_phenotype` draws for ``seed``, and return it (as written).
 
     The same arguments give byte-identical files. ``preset``: a name of :data:`PRESETS` or a SynthPreset;
-    ``garment``, ``fabric``, ``looseness``, ``detail`` and ``fit`` override the preset's.
+    ``garment``, ``fabric``, ``looseness``, ``detail``, ``fit`` and ``capture_light`` override the preset's.
     """
     from pgc.io.capture import write_capture
     from pgc.synth import fabrics, garments, rig
@@ -136,9 +139,11 @@ def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garm
     if p.sampler == "ldsampler":  # it takes powers of 4 only: round up rather than let Mitsuba warn
         p = replace(p, spp=int(4 ** np.ceil(np.log(max(p.spp, 1)) / np.log(4) - 1e-9)))
     p = replace(p, garment=garment or p.garment, fabric=fabric or p.fabric, detail=detail or p.detail,
-                fit=fit or p.fit, looseness=p.looseness if looseness is None else float(looseness))
+                fit=fit or p.fit, looseness=p.looseness if looseness is None else float(looseness),
+                capture_light=capture_light or p.capture_light)
     garment, fabric, looseness = p.garment, p.fabric, p.looseness
     fab = fabrics.get_fabric(fabric)
+    light = rig.capture_light(p.capture_light)
     detail_spec = get_detail(p.detail)
     reporter = reporter or Reporter.silent()
     out = Path(out)
@@ -161,7 +166,6 @@ def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garm
         st.record(fibres=0 if fibres is None else len(fibres.face),
                   detail_vertices=0 if surface is None else len(surface.offset))
 
-    light = rig.capture_light()
     center, radius = framing_sphere(p.framing, body.height, cloth.vertices)
     cameras = rig.dome_cameras(p.views, p.resolution, p.resolution, center=center,
                                distance=1.55 * body.height, subject_radius=radius, seed=seed)
@@ -181,7 +185,7 @@ def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garm
             st.progress(i + 1)
 
     metadata = {"generator": "pgc synth", "preset": asdict(p), "garment": garment, "fabric": fabric, "seed": seed,
-                "looseness": looseness, "ground_truth": "ground_truth/scene.json",
+                "looseness": looseness, "capture_light": p.capture_light, "ground_truth": "ground_truth/scene.json",
                 "body": body_record(body)}
     capture = Capture(views, light=light, metadata=metadata)
     with reporter.stage("synth_write"):

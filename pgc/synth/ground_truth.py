@@ -13,7 +13,8 @@ Layout::
     fibres.npz            fibres: root face, barycentrics, local directions, length, radius, colour (root offset;
                           fibre truths: colour group per fibre and the group colours)
     detail.npz            near-field detail embedded in garment.obj: subdivision level, per fine vertex offset
-    light.json            the capture light (constant RGB radiance)
+    light.json            the capture light: RGB radiance, rotation, kind ('uniform', 'sky-sun'), envmap file
+    capture_light.exr     the capture light's environment map (absent for a uniform light)
     envmaps/<kind>.exr    environment maps for relighting ground truth
     body_model.npz        skinned body in the capture pose: vertices, faces, joints, joint names, parents, weights,
                           the body model's name and its phenotype (names, values)
@@ -42,6 +43,8 @@ from pgc.synth.fabrics import appearance
 from pgc.types import Light, Material, Mesh
 
 GT_DIR = "ground_truth"
+CAPTURE_ENVMAP = "capture_light.exr"
+"""The capture light's environment map in the ground-truth folder (a sky-sun capture light only)."""
 
 
 @dataclass
@@ -99,7 +102,12 @@ def write_ground_truth(root: str | os.PathLike, gt: GroundTruth, body: SynthBody
                   radius=np.float64(f.radius), color=f.color, **extra)
     if gt.detail is not None:
         _save_npz(out / "detail.npz", level=np.int64(gt.detail.level), offset=gt.detail.offset)
-    write_json(out / "light.json", {"radiance": gt.light.radiance.tolist(), "rotation_deg": gt.light.rotation_deg})
+    light_doc = {"radiance": gt.light.radiance.tolist(), "rotation_deg": gt.light.rotation_deg,
+                 "kind": manifest.get("capture_light", "uniform"), "envmap": None}
+    if gt.light.envmap is not None:
+        light_doc["envmap"] = CAPTURE_ENVMAP
+        imgio.write_exr(out / CAPTURE_ENVMAP, gt.light.envmap)
+    write_json(out / "light.json", light_doc)
     for kind, env in envmaps.items():
         imgio.write_exr(out / "envmaps" / f"{kind}.exr", env)
     write_body_model(out, body)
@@ -149,13 +157,15 @@ def read_ground_truth(root: str | os.PathLike) -> GroundTruth:
                         None if layer is None else HairLayer.from_record(layer),
                         z["group"] if layer is not None else None, z["palette"] if layer is not None else None)
     light_doc = read_json(gt_dir / "light.json", "ground-truth light.json")
+    envmap = imgio.read_envmap(gt_dir / light_doc["envmap"]) if light_doc.get("envmap") else None
     garment = read_mesh(gt_dir / "garment.obj")
     detail = None
     if (gt_dir / "detail.npz").is_file():
         z = np.load(gt_dir / "detail.npz")
         detail = DetailSurface(int(z["level"]), z["offset"], garment.faces, garment.uv, garment.face_uv)
     return GroundTruth(read_mesh(gt_dir / "body.obj"), garment, material,
-                       Light(np.asarray(light_doc["radiance"]), rotation_deg=light_doc.get("rotation_deg", 0.0)),
+                       Light(np.asarray(light_doc["radiance"]), envmap=envmap,
+                             rotation_deg=light_doc.get("rotation_deg", 0.0)),
                        normal_map, fibres, tuple(mat.get("skin_albedo", SKIN_ALBEDO)), manifest, detail)
 
 

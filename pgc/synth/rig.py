@@ -1,4 +1,4 @@
-"""The capture rig: cameras on a half dome around the person, and the lights.
+"""The capture rig: cameras on a half dome around the person, the capture light and the relighting maps.
 
 A real capture dome (the paper's: 170 cameras on a half dome, 4096x2668, about 2.5-3 m from the subject,
 focal lengths framing the whole person) scaled down: C cameras on rings of a hemisphere centred at the
@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from pgc.errors import PGCDataError
+from pgc.sampling import envmap_directions, fibonacci_sphere
 from pgc.types import Camera, Light, look_at_pose
 
 DEFAULT_RADIANCE = (1.0, 0.96, 0.9)
@@ -49,9 +50,55 @@ def dome_cameras(count: int = 32, width: int = 256, height: int = 256, center: t
     return cams
 
 
-def capture_light(radiance: tuple[float, float, float] = DEFAULT_RADIANCE) -> Light:
-    """The constant environment light of the capture dome."""
-    return Light(radiance=np.asarray(radiance, float))
+CAPTURE_LIGHTS = ("uniform", "sky-sun")
+"""The capture lights of :func:`capture_light` (docs/pbr.md, "A capture light that identifies the material")."""
+
+SUN_ELEVATION_DEG = 40.0
+SUN_AZIMUTH_DEG = 30.0
+"""The sky-sun capture light's sun: elevation above the horizon and azimuth from +Z toward +X, degrees."""
+SUN_RADIUS_DEG = 3.0
+SUN_FRACTION = 0.6
+"""The sun's share of the irradiance on an upward-facing surface."""
+
+
+def capture_light(kind: str = "uniform", radiance: tuple[float, float, float] = DEFAULT_RADIANCE,
+                  envmap_height: int = 64) -> Light:
+    """The capture dome's light, known to the material fit: 'uniform', a constant environment of
+    ``radiance``; 'sky-sun', ``radiance`` times :func:`sky_sun_envmap` (a bluish sky brightening to the
+    zenith, a dim ground and a sun; exposed so that no face receives more irradiance than under the uniform
+    light)."""
+    if kind == "uniform":
+        return Light(radiance=np.asarray(radiance, float))
+    if kind == "sky-sun":
+        return Light(radiance=np.asarray(radiance, float), envmap=sky_sun_envmap(envmap_height))
+    raise PGCDataError(f"unknown capture light '{kind}'; use one of: {', '.join(CAPTURE_LIGHTS)}")
+
+
+def sky_sun_envmap(height: int = 64) -> np.ndarray:
+    """The sky-sun capture environment (height, 2 height, 3) float32: sky radiance 0.2 below the horizon
+    rising to 1 at the zenith, tinted (0.8, 0.9, 1.1); a sun disc of ``SUN_RADIUS_DEG`` (at least one pixel)
+    at ``SUN_ELEVATION_DEG`` / ``SUN_AZIMUTH_DEG`` carrying ``SUN_FRACTION`` of the irradiance on an
+    upward face. Exposed as the uniform light is: the brightest irradiance on any unoccluded face (green) is
+    pi, that of the uniform environment of radiance 1, so a white Lambertian face is at most radiance 1 under
+    either light (the capture's 8-bit images clip at 1; scaled to mean radiance 1 instead, 11-23 % of the
+    garment's pixels in sun-lit views clipped)."""
+    if height < 8:
+        raise PGCDataError(f"sky_sun_envmap: need a height of at least 8 pixels, got {height}")
+    d, solid = envmap_directions(height, 2 * height)
+    d, solid = d.reshape(height, 2 * height, 3), solid.reshape(height, 2 * height)
+    up = d[..., 1]
+    sky = (0.2 + 0.8 * np.clip(up, 0.0, 1.0))[..., None] * np.array([0.8, 0.9, 1.1])
+    e, a = np.deg2rad(SUN_ELEVATION_DEG), np.deg2rad(SUN_AZIMUTH_DEG)
+    sun_dir = np.array([np.cos(e) * np.sin(a), np.sin(e), np.cos(e) * np.cos(a)])
+    cos_to_sun = d @ sun_dir
+    disc = cos_to_sun >= min(np.cos(np.deg2rad(SUN_RADIUS_DEG)), cos_to_sun.max())
+    sky_on_top = float(np.sum(sky[..., 1] * solid * np.clip(up, 0.0, None)))
+    sun_irradiance = SUN_FRACTION / (1.0 - SUN_FRACTION) * sky_on_top
+    sun_radiance = sun_irradiance / float(np.sum(solid[disc] * np.clip(up[disc], 1e-3, None)))
+    img = sky + disc[..., None] * sun_radiance
+    normals = fibonacci_sphere(512)
+    irradiance = np.clip(normals @ d.reshape(-1, 3).T, 0.0, None) @ (img[..., 1] * solid).reshape(-1)
+    return (img * (np.pi / irradiance.max())).astype(np.float32)
 
 
 def relight_envmap(height: int = 64, kind: str = "sky", seed: int = 0) -> np.ndarray:
@@ -61,10 +108,7 @@ def relight_envmap(height: int = 64, kind: str = "sky", seed: int = 0) -> np.nda
     degrees up, 70 degrees round from +Z, about 15 degrees across at 1/e) over a faint fill, a key-to-fill
     irradiance ratio of about 20:1."""
     rng = np.random.default_rng(seed)
-    theta = (np.arange(height) + 0.5) / height * np.pi  # from +Y
-    phi = (np.arange(2 * height) + 0.5) / (2 * height) * 2 * np.pi
-    th, ph = np.meshgrid(theta, phi, indexing="ij")
-    d = np.stack([np.sin(th) * np.sin(ph), np.cos(th), -np.sin(th) * np.cos(ph)], axis=-1)
+    d = envmap_directions(height, 2 * height)[0].reshape(height, 2 * height, 3)
     if kind == "sky":
         sky = np.array([0.35, 0.5, 0.8]) * np.clip(d[..., 1:2], 0, 1) ** 0.5 + np.array([0.9, 0.85, 0.8]) * 0.2
         ground = np.array([0.12, 0.1, 0.08])

@@ -10,21 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from pgc.sampling import envmap_directions
 from pgc.types import Light
-
-
-def envmap_directions(height: int, width: int, rotation_deg: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """World directions (H*W, 3) of the pixel centres of a lat-long map and their solid angles (H*W,)."""
-    u = (np.arange(width) + 0.5) / width
-    v = (np.arange(height) + 0.5) / height
-    U, Vv = np.meshgrid(u, v)
-    phi, theta = 2 * np.pi * U, np.pi * Vv
-    # local: atan2(x, -z) = phi, acos(y) = theta
-    local = np.stack([np.sin(theta) * np.sin(phi), np.cos(theta), -np.sin(theta) * np.cos(phi)], -1).reshape(-1, 3)
-    a = np.radians(rotation_deg)
-    rot = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
-    solid = (np.sin(theta) * (np.pi / height) * (2 * np.pi / width)).reshape(-1)
-    return local @ rot.T, solid
 
 
 def direction_radiance(light: Light, directions: np.ndarray) -> np.ndarray:
