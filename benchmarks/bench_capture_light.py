@@ -50,7 +50,8 @@ def capture(work: Path, fabric: str, seed: int, light: str, args: argparse.Names
     folder = work / f"{fabric}_s{seed}_{light}_v{args.views}_r{args.resolution}_spp{args.spp}_{args.framing}"
     if not (folder / "ground_truth" / "scene.json").is_file():
         preset = get_preset("tiny", views=args.views, resolution=args.resolution, spp=args.spp, framing=args.framing)
-        generate(folder, preset, fabric=fabric, seed=seed, capture_light=light, renderer=scene_renderer(cfg))
+        generate(folder, preset, fabric=fabric, seed=seed, capture_light=light, renderer=scene_renderer(cfg),
+                 body_model=cfg.create("body_model"))
     return folder
 
 

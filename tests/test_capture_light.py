@@ -146,7 +146,7 @@ def test_synth_refuses_an_unknown_capture_light_before_any_work(tmp_path):
     from pgc.synth.generate import generate
 
     with pytest.raises(PGCDataError, match="unknown capture light 'studio'"):
-        generate(tmp_path / "cap", "tiny", capture_light="studio", renderer=None)
+        generate(tmp_path / "cap", "tiny", capture_light="studio", renderer=None, body_model=None)
     assert not (tmp_path / "cap").exists()
 
 
