@@ -106,7 +106,7 @@ class HybridRenderer:
         """Every output layer of one frame and camera, composed with ``decision``'s kernel and far field."""
         lay = self.layers(vertices, camera, light, decision.far_source, occluder)
         h = compose(lay["near"], lay["far"], self.filter, decision.kernel_size, silhouette=self.settings.silhouette,
-                    outline_fade=self.settings.outline_fade)
+                    outline_fade=self.settings.outline_fade, detail=self.settings.detail)
         return {"hybrid": h.hybrid, "near": h.near, "far": h.far, "pbr": lay["pbr"].color,
                 "alpha": h.alpha, "hybrid_alpha": h.hybrid_alpha, "pbr_alpha": lay["pbr"].alpha,
                 "low_far": h.low_far, "high_near": h.high_near}
@@ -150,12 +150,12 @@ def choose_kernel(renderer: HybridRenderer, capture, cfg: RunConfig) -> KernelDe
         if metric is not None:
             # one choice over all kernel views; the far fields are compared by the same metric
             choice = choose_kernel_by_metric(renderer.filter, per_view, metric, settings.kernel.metric,
-                                             settings.kernel.sizes, settings.kernel.tolerance)
+                                             settings.kernel.sizes, settings.kernel.tolerance, settings.detail)
             decisions[source] = (choice.scores[choice.size], choice.size, [choice] * len(per_view))
             continue
-        choices = [select_kernel(settings.kernel, renderer.filter, frame) for frame in per_view]
+        choices = [select_kernel(settings.kernel, renderer.filter, frame, settings.detail) for frame in per_view]
         size = int(np.median([c.size for c in choices])) | 1
-        error = float(np.mean([hybrid_error(renderer.filter, frame, size) for frame in per_view]))
+        error = float(np.mean([hybrid_error(renderer.filter, frame, size, settings.detail) for frame in per_view]))
         decisions[source] = (error, size, choices)
     sign = -1.0 if metric is not None and metric.higher_is_better else 1.0
     chosen = min(decisions, key=lambda k: sign * decisions[k][0])
