@@ -1,4 +1,5 @@
-"""The near field's detail in the hybrid (pgc.filtering.detail): additive h(G) or multiplicative G / l(G)."""
+"""The near field's detail in the hybrid (pgc.filtering.detail): additive h(G), multiplicative G / l(G), or h(G)
+scaled by the far field's change from the capture light."""
 
 import numpy as np
 import pytest
@@ -7,8 +8,10 @@ from pgc import config as config_mod
 from pgc.errors import PGCConfigError
 from pgc.filtering.detail import DETAIL_MODES, GAIN_FLOOR, MAX_GAIN, detail_gain
 from pgc.pipeline.compose import compose, unpremultiply
+from pgc.pipeline.render import same_light
 from pgc.registry import default_registry
 from pgc.roles.splat_renderer import RenderOutput
+from pgc.types import Light
 
 
 def filters():
@@ -32,7 +35,7 @@ def garment(rng, h=24, w=32, low=0.05):
 def test_every_mode_reproduces_the_near_field_when_the_far_field_matches_it(filt, silhouette, detail):
     """At the capture pose under the capture light (S = G) the hybrid is G, whichever detail mode."""
     g = garment(np.random.default_rng(0))
-    frame = compose(g, g, filt, 7, silhouette=silhouette, detail=detail)
+    frame = compose(g, g, filt, 7, silhouette=silhouette, detail=detail, far_capture=g)
     # with the far silhouette the detail is weighted by the near alpha: G itself where the garment covers fully
     garment_px = g.alpha > 0.99 if silhouette == "far" else g.alpha >= 0
     np.testing.assert_allclose(frame.hybrid[garment_px], g.color[garment_px], atol=2e-5)
@@ -51,6 +54,34 @@ def test_multiplicative_detail_follows_a_scaled_light_and_additive_does_not(filt
     add = compose(g, s, filt, 9, detail="additive")
     low_g = filt.lowpass(unpremultiply(g), g.alpha, 9)
     np.testing.assert_allclose(add.hybrid[inside], np.maximum(g.color + (c - 1) * low_g, 0)[inside], rtol=1e-4, atol=1e-5)
+
+
+@pytest.mark.parametrize("filt", filters(), ids=lambda f: type(f).__name__)
+def test_ratio_detail_scales_the_capture_light_hybrid_by_the_far_fields_change(filt):
+    """Far field S_c under the capture light, c * S_c under a novel one: the ratio hybrid is c times the capture
+    light's additive hybrid l(S_c) + h(G); without a capture-light far field it is the additive hybrid."""
+    rng = np.random.default_rng(3)
+    g = garment(rng)
+    s_capture = garment(rng, low=0.1)
+    s_capture = RenderOutput(s_capture.color, g.alpha)
+    c = np.array([2.0, 0.5, 1.25], np.float32)
+    relit = RenderOutput(s_capture.color * c, g.alpha)
+    inside = g.alpha > 0.99
+    capture_hybrid = compose(g, s_capture, filt, 9, detail="additive")
+    ratio = compose(g, relit, filt, 9, detail="ratio", far_capture=s_capture)
+    np.testing.assert_allclose(ratio.hybrid[inside], (c * capture_hybrid.hybrid)[inside], rtol=1e-4, atol=1e-5)
+    same = compose(g, relit, filt, 9, detail="ratio")
+    np.testing.assert_array_equal(same.hybrid, compose(g, relit, filt, 9, detail="additive").hybrid)
+
+
+def test_same_light_compares_radiance_map_and_rotation():
+    env = np.ones((4, 8, 3), np.float32)
+    assert same_light(Light(np.ones(3)), Light(np.ones(3)))
+    assert not same_light(Light(np.ones(3)), Light(np.ones(3) * 2))
+    assert not same_light(Light(np.ones(3)), Light(np.ones(3), envmap=env))
+    assert same_light(Light(np.ones(3), envmap=env, rotation_deg=90), Light(np.ones(3), envmap=env.copy(), rotation_deg=90))
+    assert not same_light(Light(np.ones(3), envmap=env), Light(np.ones(3), envmap=env, rotation_deg=90))
+    assert not same_light(Light(np.ones(3), envmap=env), Light(np.ones(3), envmap=env * 0.5))
 
 
 def hard_cases():
@@ -74,10 +105,12 @@ def hard_cases():
 
 @pytest.mark.parametrize("filt", filters(), ids=lambda f: type(f).__name__)
 @pytest.mark.parametrize("silhouette", ["near", "far"])
+@pytest.mark.parametrize("detail", ["multiplicative", "ratio"])
 @pytest.mark.parametrize("case", list(hard_cases()))
-def test_multiplicative_hybrid_is_finite_and_bounded_on_hard_cases(filt, silhouette, case):
+def test_guarded_hybrids_are_finite_and_bounded_on_hard_cases(filt, silhouette, detail, case):
+    """The near field's render doubles as the capture-light far field of mode 'ratio' (its hard denominators)."""
     near, far = hard_cases()[case]
-    frame = compose(near, far, filt, 7, silhouette=silhouette, outline_fade=1.0, detail="multiplicative")
+    frame = compose(near, far, filt, 7, silhouette=silhouette, outline_fade=1.0, detail=detail, far_capture=near)
     assert np.isfinite(frame.hybrid).all()
     low_s = frame.low_far
     # |l(S) + g h(G)| <= l(S) + MAX_GAIN |h(G)|, with h(G) of un-premultiplied colours in [0, 1]
@@ -92,6 +125,8 @@ def test_gain_is_the_guarded_ratio():
     expected = [min(0.5 / GAIN_FLOOR, MAX_GAIN), MAX_GAIN, 0.0, 2.0, 0.0, MAX_GAIN]
     np.testing.assert_allclose(gain, expected, rtol=1e-6)
     assert detail_gain(low_far, low_near, "additive") == 1.0
+    assert detail_gain(low_far, low_near, "ratio") == 1.0  # no capture-light far field: the capture light
+    np.testing.assert_allclose(detail_gain(low_far, np.ones(6), "ratio", low_near), expected, rtol=1e-6)
     with pytest.raises(ValueError, match="detail mode"):
         detail_gain(low_far, low_near, "divisive")
 
