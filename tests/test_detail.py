@@ -134,6 +134,6 @@ def test_gain_is_the_guarded_ratio():
 def test_render_settings_take_the_detail_mode_and_refuse_others():
     cfg = config_mod.resolve({"stages": {"render": {"detail": "multiplicative"}}})
     assert cfg.stage("render").detail == "multiplicative"
-    assert config_mod.resolve({}).stage("render").detail == "additive"
+    assert config_mod.resolve({}).stage("render").detail == "multiplicative"
     with pytest.raises(PGCConfigError, match="detail"):
         config_mod.resolve({"stages": {"render": {"detail": "divisive"}}})
