@@ -53,7 +53,8 @@ def test_multiplicative_detail_follows_a_scaled_light_and_additive_does_not(filt
     np.testing.assert_allclose(mult.hybrid[inside], (g.color * c)[inside], rtol=1e-4, atol=1e-5)
     add = compose(g, s, filt, 9, detail="additive")
     low_g = filt.lowpass(unpremultiply(g), g.alpha, 9)
-    np.testing.assert_allclose(add.hybrid[inside], np.maximum(g.color + (c - 1) * low_g, 0)[inside], rtol=1e-4, atol=1e-5)
+    expected = np.maximum(g.color + (c - 1) * low_g, 0)
+    np.testing.assert_allclose(add.hybrid[inside], expected[inside], rtol=1e-4, atol=1e-5)
 
 
 @pytest.mark.parametrize("filt", filters(), ids=lambda f: type(f).__name__)
@@ -79,7 +80,8 @@ def test_same_light_compares_radiance_map_and_rotation():
     assert same_light(Light(np.ones(3)), Light(np.ones(3)))
     assert not same_light(Light(np.ones(3)), Light(np.ones(3) * 2))
     assert not same_light(Light(np.ones(3)), Light(np.ones(3), envmap=env))
-    assert same_light(Light(np.ones(3), envmap=env, rotation_deg=90), Light(np.ones(3), envmap=env.copy(), rotation_deg=90))
+    assert same_light(Light(np.ones(3), envmap=env, rotation_deg=90),
+                      Light(np.ones(3), envmap=env.copy(), rotation_deg=90))
     assert not same_light(Light(np.ones(3), envmap=env), Light(np.ones(3), envmap=env, rotation_deg=90))
     assert not same_light(Light(np.ones(3), envmap=env), Light(np.ones(3), envmap=env * 0.5))
 
