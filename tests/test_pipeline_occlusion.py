@@ -84,7 +84,7 @@ def test_render_faces_with_an_occluder_empties_the_pixels_it_covers():
     np.testing.assert_array_equal(render_faces(garment, CAMERA, occluder=behind).face_id, plain.face_id)
 
 
-def _hybrid_renderer(far_source: str):
+def _hybrid_renderer(far_source: str, detail: str = "multiplicative"):
     from pgc.config import resolve
     from pgc.pipeline.render import HybridRenderer
     from pgc.splats.init import sample_on_mesh
@@ -99,8 +99,30 @@ def _hybrid_renderer(far_source: str):
     texture = np.full((8, 8, 3), 0.5, np.float32)
     asset = GarmentAsset(garment, garment, g, Material("lambertian", {}, texture), Light(np.ones(3)))
     cfg = resolve({"pbr_renderer": {"use": ["torch"], "torch": {"directions": 64, "threads": 1}},
-                   "stages": {"render": {"far_source": far_source, "texture_size": 32}}})
+                   "stages": {"render": {"far_source": far_source, "texture_size": 32, "detail": detail}}})
     return HybridRenderer(asset, cfg)
+
+
+@pytest.mark.parametrize("far_source", ["splats", "mesh"])
+def test_ratio_detail_renders_the_capture_light_far_field_under_a_novel_light_only(far_source):
+    """Detail 'ratio': under the capture light no second far field; under a light c times brighter the frame's
+    hybrid is c times the capture light's (every layer of a Lambertian garment scales with the light)."""
+    pytest.importorskip("torch")
+    pytest.importorskip("open3d")
+    from pgc.pipeline.render import KernelDecision
+    from pgc.types import Light
+
+    renderer = _hybrid_renderer(far_source, detail="ratio")
+    vertices, light = renderer.asset.garment.vertices, renderer.asset.light
+    assert renderer.layers(vertices, CAMERA, light, far_source)["far_capture"] is None
+    brighter = Light(light.radiance * 1.7)
+    relit_layers = renderer.layers(vertices, CAMERA, brighter, far_source)
+    np.testing.assert_allclose(relit_layers["far_capture"].color,
+                               renderer.layers(vertices, CAMERA, light, far_source)["far"].color, atol=1e-6)
+    decision = KernelDecision(5, far_source, "fixed")
+    capture = renderer.frame(vertices, CAMERA, light, decision)
+    relit = renderer.frame(vertices, CAMERA, brighter, decision)
+    np.testing.assert_allclose(relit["hybrid"], 1.7 * capture["hybrid"], rtol=1e-4, atol=1e-5)
 
 
 @pytest.mark.parametrize("far_source", ["splats", "mesh"])

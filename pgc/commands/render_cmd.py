@@ -12,7 +12,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "render", help="render an animated run (hybrid 3DGS + PBR)",
         description="Render the frames of a run with the hybrid renderer: the PBR renderer's radiance in "
                     "texture space colours the far-field Gaussians, the optimised Gaussians give the near "
-                    "field, and an alpha-aware low-pass combines them: I = h(G) + l(S). The 3DGS-only and "
+                    "field, and an alpha-aware low-pass l combines them: I = l(S) + h(G), h = 1 - l, with the "
+                    "detail h(G) scaled by l(S) / l(G) by default ([stages.render] detail). The 3DGS-only and "
                     "PBR-only ablations are rendered too. --light relights with an environment map "
                     "(EXR, latitude-longitude), turned --light-rotation degrees about +Y; --rotate-light turns it a full "
                     "circle over the frames instead.",

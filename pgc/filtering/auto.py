@@ -30,6 +30,7 @@ import numpy as np
 from pydantic import Field, field_validator
 
 from pgc.errors import PGCDataError
+from pgc.filtering.detail import hybrid_colour
 from pgc.filtering.kernel import check_kernel_size, kernel_size_for_height, odd_size
 from pgc.options import Options, _check_integer, count
 from pgc.roles.filter import Filter
@@ -121,17 +122,20 @@ def _sizes(sizes: list[int] | None, shape: tuple[int, ...]) -> list[int]:
     return sizes
 
 
-def hybrid_image(filt: Filter, frame: TrainingFrame, kernel_size: int) -> np.ndarray:
-    """The hybrid ``h(G) + l(S)`` of one frame at one kernel size, (H, W, 3) float32."""
-    return (filt.highpass(np.asarray(frame.near, np.float32), frame.near_alpha, kernel_size)
-            + filt.lowpass(np.asarray(frame.far, np.float32), frame.far_alpha, kernel_size))
+def hybrid_image(filt: Filter, frame: TrainingFrame, kernel_size: int, detail: str = "additive") -> np.ndarray:
+    """The hybrid ``h(G) + l(S)`` of one frame at one kernel size (``detail``: :mod:`pgc.filtering.detail`),
+    (H, W, 3) float32."""
+    near = np.asarray(frame.near, np.float32)
+    low_near = filt.lowpass(near, frame.near_alpha, kernel_size)
+    low_far = filt.lowpass(np.asarray(frame.far, np.float32), frame.far_alpha, kernel_size)
+    return hybrid_colour(near - low_near, low_near, low_far, detail)
 
 
-def hybrid_error(filt: Filter, frame: TrainingFrame, kernel_size: int) -> float:
+def hybrid_error(filt: Filter, frame: TrainingFrame, kernel_size: int, detail: str = "additive") -> float:
     """``mean |I - (h(G) + l(S))|`` over the frame's garment weights and channels: the error rule's score of one
     kernel size."""
     image = np.asarray(frame.image, np.float32)
-    hybrid = hybrid_image(filt, frame, kernel_size)
+    hybrid = hybrid_image(filt, frame, kernel_size, detail)
     return _garment_mean(np.abs(image - hybrid), frame.weights()[..., None]) / image.shape[2]
 
 
@@ -144,13 +148,14 @@ def _check_far(frame: TrainingFrame, rule: str) -> None:
                            f"{shapes[2]} must have the same shape")
 
 
-def hybrid_score(filt: Filter, frames: list[TrainingFrame], kernel_size: int, metric: Metric) -> float:
+def hybrid_score(filt: Filter, frames: list[TrainingFrame], kernel_size: int, metric: Metric,
+                 detail: str = "additive") -> float:
     """Mean of ``metric`` over ``frames`` of the hybrid at ``kernel_size`` against the captured image, both
     on black outside the garment weights, restricted to them (the evaluation's convention)."""
     values = []
     for frame in frames:
         weights = frame.weights()
-        hybrid = np.clip(hybrid_image(filt, frame, kernel_size), 0.0, 1.0) * weights[..., None]
+        hybrid = np.clip(hybrid_image(filt, frame, kernel_size, detail), 0.0, 1.0) * weights[..., None]
         image = np.clip(np.asarray(frame.image, np.float32), 0.0, 1.0) * weights[..., None]
         values.append(metric(hybrid, image, weights))
     return float(np.mean(values))
@@ -168,24 +173,26 @@ def smallest_within(scores: dict[int, float], tolerance: float, higher_is_better
 
 
 def choose_kernel_by_metric(filt: Filter, frames: list[TrainingFrame], metric: Metric, name: str,
-                            sizes: list[int] | None = None, tolerance: float = 0.0) -> KernelChoice:
-    """The smallest candidate size whose hybrid score under ``metric`` (:func:`hybrid_score`, over ``frames``) is
-    within ``tolerance`` of the score range from the best (0: the best score). ``name`` labels the criterion.
-    Scores: the metric's value per candidate size."""
+                            sizes: list[int] | None = None, tolerance: float = 0.0,
+                            detail: str = "additive") -> KernelChoice:
+    """The smallest candidate size whose hybrid score under ``metric`` (:func:`hybrid_score`, over ``frames``,
+    composed with ``detail``) is within ``tolerance`` of the score range from the best (0: the best score).
+    ``name`` labels the criterion. Scores: the metric's value per candidate size."""
     if not frames:
         raise PGCDataError("kernel choice: mode 'metric' needs at least one view")
     for frame in frames:
         _check_far(frame, "metric")
-    scores = {k: hybrid_score(filt, frames, k, metric) for k in _sizes(sizes, np.shape(frames[0].image))}
+    scores = {k: hybrid_score(filt, frames, k, metric, detail) for k in _sizes(sizes, np.shape(frames[0].image))}
     return KernelChoice(smallest_within(scores, tolerance, metric.higher_is_better), f"metric:{name}", scores)
 
 
 def choose_kernel_by_error(filt: Filter, frame: TrainingFrame, sizes: list[int] | None = None,
-                           tolerance: float = 0.1) -> KernelChoice:
-    """The smallest size whose training-frame error ``mean |I - (h(G) + l(S))|`` (:func:`hybrid_error`) is within
-    ``tolerance`` of the error range above the minimum. Scores: mean absolute error per candidate size."""
+                           tolerance: float = 0.1, detail: str = "additive") -> KernelChoice:
+    """The smallest size whose training-frame error ``mean |I - (h(G) + l(S))|`` (:func:`hybrid_error`, composed
+    with ``detail``) is within ``tolerance`` of the error range above the minimum. Scores: mean absolute error per
+    candidate size."""
     _check_far(frame, "error")
-    scores = {k: hybrid_error(filt, frame, k) for k in _sizes(sizes, np.shape(frame.image))}
+    scores = {k: hybrid_error(filt, frame, k, detail) for k in _sizes(sizes, np.shape(frame.image))}
     return KernelChoice(smallest_within(scores, tolerance), "error", scores)
 
 
@@ -219,9 +226,10 @@ def choose_kernel_by_gradient(filt: Filter, frame: TrainingFrame, sizes: list[in
     return KernelChoice(sizes[-1], "gradient", scores)
 
 
-def select_kernel(selection: KernelSelection, filt: Filter, frame: TrainingFrame) -> KernelChoice:
-    """Apply ``selection`` to one view of the training frame (mode 'metric' scores several views at once:
-    :func:`choose_kernel_by_metric`)."""
+def select_kernel(selection: KernelSelection, filt: Filter, frame: TrainingFrame,
+                  detail: str = "additive") -> KernelChoice:
+    """Apply ``selection`` to one view of the training frame, the hybrid composed with ``detail`` (mode 'metric'
+    scores several views at once: :func:`choose_kernel_by_metric`)."""
     height = np.asarray(frame.image).shape[0]
     if selection.mode == "paper":
         return KernelChoice(kernel_size_for_height(height), "paper")
@@ -234,4 +242,4 @@ def select_kernel(selection: KernelSelection, filt: Filter, frame: TrainingFrame
     if selection.mode == "metric":
         raise PGCDataError("kernel selection: mode 'metric' scores several views with a metric plugin; "
                            "use choose_kernel_by_metric")
-    return choose_kernel_by_error(filt, frame, selection.sizes, selection.tolerance)
+    return choose_kernel_by_error(filt, frame, selection.sizes, selection.tolerance, detail)

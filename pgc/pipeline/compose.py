@@ -10,7 +10,9 @@
   faces away but shows through or beside the front (those would carry the black radiance of a back face);
 - the body occludes both: splat pixels whose depth lies behind the body's z-buffer are removed
   (:func:`hide_behind`);
-- ``l``: the alpha-aware low-pass of the filter role, ``h = 1 - l``.
+- ``l``: the alpha-aware low-pass of the filter role, ``h = 1 - l``; with ``detail = 'multiplicative'`` the
+  hybrid is ``l(S) G / l(G)`` instead, with ``'ratio'`` ``l(S) + h(G) l(S) / l(S_c)`` (``S_c`` the far field
+  under the capture light; :mod:`pgc.filtering.detail`).
 Compositing is done on un-premultiplied colours (render colour / alpha) so the alpha-aware blur sees the
 garment's own colour; the result is re-composited over the background with the alpha of the layer that
 gives the garment its shape (``silhouette``): ``'near'``, the Gaussians' alpha (the paper, where ``S_t`` is the
@@ -28,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pgc.filtering.detail import hybrid_colour
 from pgc.geometry.raster import Raster
 from pgc.roles.filter import Filter
 from pgc.roles.splat_renderer import RenderOutput
@@ -155,19 +158,27 @@ def outline_weight(alpha: np.ndarray, width: float) -> np.ndarray:
 
 
 def compose(near: RenderOutput, far: RenderOutput, filt: Filter, kernel_size: int,
-            background: np.ndarray | None = None, silhouette: str = "near", outline_fade: float = 0.0) -> HybridFrame:
+            background: np.ndarray | None = None, silhouette: str = "near", outline_fade: float = 0.0,
+            detail: str = "additive", far_capture: RenderOutput | None = None) -> HybridFrame:
     """Combine the near-field and far-field renders of one view (both rendered over black); ``silhouette``
     ('near' or 'far'): whose alpha shapes the hybrid (module docstring). ``outline_fade`` (with silhouette
     'far'): within ``outline_fade * kernel_size`` px of the far field's outline the hybrid blends linearly
     into the far field itself (:func:`outline_weight`), so the outline band shows no near-field detail; 0
-    turns it off."""
+    turns it off. ``detail``: how the near field's high band enters, ``'additive'`` (``l(S) + h(G)``, the
+    paper), ``'multiplicative'`` (``l(S) G / l(G)``) or ``'ratio'`` (``l(S) + h(G) l(S) / l(S_c)``, with
+    ``far_capture`` the far field under the capture light; None: the render light is the capture light), see
+    :mod:`pgc.filtering.detail`."""
     if silhouette not in ("near", "far"):
         raise ValueError(f"compose: silhouette must be 'near' or 'far', not {silhouette!r}")
     g, s = unpremultiply(near), unpremultiply(far)
-    high = filt.highpass(g, near.alpha, kernel_size)
+    low_near = filt.lowpass(g, near.alpha, kernel_size)
+    high = g - low_near
     low = filt.lowpass(s, far.alpha, kernel_size)
     a, fa = near.alpha[..., None], far.alpha[..., None]
-    colour = low + (high if silhouette == "near" else a * high)
+    low_capture = None
+    if detail == "ratio" and far_capture is not None:
+        low_capture = filt.lowpass(unpremultiply(far_capture), far_capture.alpha, kernel_size)
+    colour = hybrid_colour(high if silhouette == "near" else a * high, low_near, low, detail, low_capture)
     if silhouette == "far" and outline_fade > 0:
         weight = outline_weight(far.alpha, outline_fade * kernel_size)[..., None]
         colour = s + weight * (colour - s)

@@ -29,6 +29,7 @@ from pgc.pipeline.compose import (compose, far_field_gaussians, gaussian_uvs, hi
 from pgc.pipeline.garment import body_occluder
 from pgc.pipeline.runner import StageContext, StageRunner, Step
 from pgc.pipeline.stage_io import save_npz
+from pgc.roles.splat_renderer import RenderOutput
 from pgc.sampling import spread
 from pgc.splats.binding import bind
 from pgc.stages import render as render_stage
@@ -82,34 +83,54 @@ class HybridRenderer:
         near = self.splats.render(world, camera)
         raster = rasterize(camera, vertices, faces)
         hides = occluder if self.settings.body_occludes else None
-        pbr = self.pbr.render(mesh, self.asset.material, light, camera, occluder=hides)
-        far = pbr
-        if far_source == "splats":
+
+        def far_field(lit: Light) -> tuple[RenderOutput, RenderOutput]:
+            """The far field and the PBR-only render under ``lit``."""
+            pbr = self.pbr.render(mesh, self.asset.material, lit, camera, occluder=hides)
+            if far_source != "splats":
+                return pbr, pbr
             size = self.settings.texture_size
-            texture, _ = self.pbr.render_texture(mesh, self.asset.material, light, camera, (size, size),
+            texture, _ = self.pbr.render_texture(mesh, self.asset.material, lit, camera, (size, size),
                                                  occluder=occluder)
             uvs = self.uvs
             if self.settings.far_lookup == "visible":
                 uvs = visible_surface_uvs(world.means, raster, mesh, camera, self.uvs)
-            far = self.splats.render(bind(far_field_gaussians(self.asset.gaussians, uvs, texture), vertices, faces),
-                                     camera)
+            return self.splats.render(bind(far_field_gaussians(self.asset.gaussians, uvs, texture), vertices,
+                                           faces), camera), pbr
+
+        far, pbr = far_field(light)
+        # detail 'ratio' under a novel light: the far field under the capture light too
+        far_capture = None
+        if self.settings.detail == "ratio" and not same_light(light, self.asset.light):
+            far_capture = far_field(self.asset.light)[0]
         if hides is not None:  # the garment's first surface decides; beyond its silhouette, the splats' depth
             depth = np.where(np.isfinite(raster.depth), raster.depth, near.depth)
             body_depth = rasterize(camera, hides.vertices, hides.faces).depth
             near = hide_behind(near, body_depth, depth)
-            if far is not pbr:
+            if far_source == "splats":  # the PBR renders are occluded by the body already
                 far = hide_behind(far, body_depth, depth)
-        return {"near": near, "far": far, "pbr": pbr}
+                far_capture = None if far_capture is None else hide_behind(far_capture, body_depth, depth)
+        return {"near": near, "far": far, "pbr": pbr, "far_capture": far_capture}
 
     def frame(self, vertices: np.ndarray, camera: Camera, light: Light, decision: KernelDecision,
               occluder: Mesh | None = None) -> dict[str, np.ndarray]:
         """Every output layer of one frame and camera, composed with ``decision``'s kernel and far field."""
         lay = self.layers(vertices, camera, light, decision.far_source, occluder)
         h = compose(lay["near"], lay["far"], self.filter, decision.kernel_size, silhouette=self.settings.silhouette,
-                    outline_fade=self.settings.outline_fade)
+                    outline_fade=self.settings.outline_fade, detail=self.settings.detail,
+                    far_capture=lay["far_capture"])
         return {"hybrid": h.hybrid, "near": h.near, "far": h.far, "pbr": lay["pbr"].color,
                 "alpha": h.alpha, "hybrid_alpha": h.hybrid_alpha, "pbr_alpha": lay["pbr"].alpha,
                 "low_far": h.low_far, "high_near": h.high_near}
+
+
+def same_light(a: Light, b: Light) -> bool:
+    """Whether ``a`` and ``b`` light a scene alike: equal radiance, environment map and rotation."""
+    if not np.allclose(a.radiance, b.radiance) or (a.envmap is None) != (b.envmap is None):
+        return False
+    if a.envmap is None:
+        return True
+    return a.rotation_deg == b.rotation_deg and np.array_equal(a.envmap, b.envmap)
 
 
 def kernel_views(asset: GarmentAsset, capture, count: int) -> list:
@@ -150,12 +171,12 @@ def choose_kernel(renderer: HybridRenderer, capture, cfg: RunConfig) -> KernelDe
         if metric is not None:
             # one choice over all kernel views; the far fields are compared by the same metric
             choice = choose_kernel_by_metric(renderer.filter, per_view, metric, settings.kernel.metric,
-                                             settings.kernel.sizes, settings.kernel.tolerance)
+                                             settings.kernel.sizes, settings.kernel.tolerance, settings.detail)
             decisions[source] = (choice.scores[choice.size], choice.size, [choice] * len(per_view))
             continue
-        choices = [select_kernel(settings.kernel, renderer.filter, frame) for frame in per_view]
+        choices = [select_kernel(settings.kernel, renderer.filter, frame, settings.detail) for frame in per_view]
         size = int(np.median([c.size for c in choices])) | 1
-        error = float(np.mean([hybrid_error(renderer.filter, frame, size) for frame in per_view]))
+        error = float(np.mean([hybrid_error(renderer.filter, frame, size, settings.detail) for frame in per_view]))
         decisions[source] = (error, size, choices)
     sign = -1.0 if metric is not None and metric.higher_is_better else 1.0
     chosen = min(decisions, key=lambda k: sign * decisions[k][0])
