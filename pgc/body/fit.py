@@ -4,14 +4,15 @@ segmentation labels and optional 2D keypoints (torch, through the role's differe
 Per view (every length in pixels of that view):
 - the body's silhouette near its edge is ``s = sigmoid(d / sigma)``, ``d`` the signed distance of a pixel
   centre to the nearest projected contour edge (edges between a front- and a back-facing face; + inside the
-  rasterised body); at ``sigma = 1/4`` px it matches a box-filtered edge, the capture mask's coverage;
+  rasterised body); at ``sigma`` about 1/4 px it matches a box-filtered edge, the capture mask's coverage;
 - pixels labelled body must be covered as much as the mask says: ``(s - mask)^2``; every other pixel may be
   covered at most that much: ``relu(s - mask)^2`` (a garment may hide body, never the background);
 - every vertex projects inside the person's mask: the squared distance transform of the mask's outside;
 - keypoints (``KEYPOINTS_DIR/<view>.json``): the squared pixel distance of the projected joints, by confidence;
 - a prior on the squared joint angles keeps what no view constrains at rest.
-Three phases narrow ``sigma`` (2, 0.7, 0.25 px) and the band of pixels around the edge; the last stops when the
-loss no longer falls (``tolerance``). Docs: docs/body.md, "Body fit".
+Three phases narrow ``sigma`` (1.5, 0.6, 0.3 px; the silhouette term is scaled by ``sigma`` so
+its gradient keeps its size) and the band of pixels around the edge; every joint that carries skin is
+posed (joints skinning less than :data:`MIN_JOINT_SKIN` of the vertices, fingers and toes, stay at rest); the last stops when the loss no longer falls (``tolerance``). Docs: docs/body.md, "Body fit".
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ if TYPE_CHECKING:
 
     from pgc.stages.body_fit import BodyFitSettings
 
-PHASES = ((0.3, 2.0), (0.3, 0.7), (0.4, 0.25))
+PHASES = ((0.25, 1.5), (0.4, 0.6), (0.35, 0.3))
 """(share of the iterations, silhouette edge width sigma in pixels) of the coarse-to-fine phases."""
 BAND_SIGMAS = 6.0
 """Pixels within this many sigmas (at least BAND_MIN_PX) of the body's edge carry the silhouette loss."""
@@ -41,6 +42,8 @@ INSIDE_WEIGHT = 0.05
 """Weight of the vertices-inside-the-mask term (px^2 per vertex) against the silhouette term."""
 KEYPOINT_WEIGHT = 0.01
 """Weight of the keypoint term (px^2 per joint)."""
+MIN_JOINT_SKIN = 0.01
+"""Joints whose skinning weights sum to less than this fraction of the vertices (fingers, toes) are not posed."""
 TRANSLATION_SCALE = 0.1
 """Metres per unit of the optimised translation (so one learning rate suits angles, shape and position)."""
 
@@ -294,6 +297,7 @@ def _fit(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_n
     frac = ((default - low) / (high - low)).clamp(0.02, 0.98)
     shape_logit = torch.log(frac / (1 - frac)).clone().requires_grad_(True)
     angles = torch.zeros(len(names), 3, dtype=dtype, requires_grad=True)
+    posed = torch.as_tensor(np.asarray(body.weights).sum(axis=0) >= MIN_JOINT_SKIN * len(body.weights))
     with torch.no_grad():
         rest = body.forward_torch({k: default[i:i + 1] for i, k in enumerate(params)},
                                   torch.eye(3, dtype=dtype).expand(1, len(names), 3, 3), torch.zeros(1, 3, dtype=dtype))
@@ -310,7 +314,8 @@ def _fit(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_n
         return {k: value[i:i + 1] for i, k in enumerate(params)}
 
     def pose() -> "Any":
-        return body.forward_torch(shape_of(shape_logit), _rodrigues(angles)[None], TRANSLATION_SCALE * offset[None])
+        moving = torch.where(posed[:, None], angles, 0.0)
+        return body.forward_torch(shape_of(shape_logit), _rodrigues(moving)[None], TRANSLATION_SCALE * offset[None])
 
     history: list[float] = []
     steps = 0
@@ -334,7 +339,7 @@ def _fit(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_n
                     pc = verts @ R.T + t
                     uv = (pc @ K.T)[:, :2] / pc[:, 2:3].clamp_min(1e-3)
                     l, j = silhouette.loss(v, uv, pc[:, 2], sigma)
-                    loss_sil = loss_sil + l
+                    loss_sil = loss_sil + sigma * l
                     iou.append(j)
                     loss_in = loss_in + (_sample_outside(v.outside, uv) ** 2).mean()
                     if v.keypoints is not None:
@@ -350,11 +355,11 @@ def _fit(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_n
                 opt.step()
                 steps += 1
                 history.append(float(loss.detach()))
-                st.progress(steps)
+                st.progress(steps, loss=history[-1], silhouette_iou=float(np.mean(iou)))
                 if last and i >= 20 and history[-21] - history[-1] < settings.tolerance * abs(history[-21]):
                     break
     shape = {k: float(x) for k, x in zip(params, (low + (high - low) * torch.sigmoid(shape_logit)).tolist())}
-    rotations = _rodrigues(angles.detach().double()).numpy()
+    rotations = _rodrigues(torch.where(posed[:, None], angles.detach(), 0.0).double()).numpy()
     translation = (TRANSLATION_SCALE * offset.detach().double()).numpy()
     mesh = body.mesh(shape, rotations, translation)
     figures = {"views": len(views), "view_names": [v.name for v in views], "iterations": steps,
