@@ -107,3 +107,14 @@ def anny_capture(body, renderer, shape: dict, rotations: np.ndarray, translation
         layers = renderer.ground_truth_layers(scene, labels, geometry, cam, 4)
         out.append(View(cam, np.full((size, size, 3), 0.5, np.float32), layers["mask"], layers["segmentation"]))
     return Capture(out), state, cloth
+
+
+def random_body(body, seed: int) -> tuple[dict[str, float], np.ndarray]:
+    """An adult's shape (Anny's phenotypes; age between young and middle-aged) and a capture pose near the rest
+    A-pose (arms, elbows, legs, neck and spine turned by up to 15 degrees), drawn from ``seed``."""
+    rng = np.random.default_rng(seed)
+    shape = {"gender": rng.uniform(0.0, 1.0), "age": rng.uniform(0.55, 0.85), "muscle": rng.uniform(0.2, 0.8),
+             "weight": rng.uniform(0.2, 0.8), "height": rng.uniform(0.2, 0.8), "proportions": rng.uniform(0.2, 0.8)}
+    joints = ("LeftArm", "RightArm", "LeftForeArm", "RightForeArm", "LeftUpLeg", "RightUpLeg", "Neck", "Spine")
+    angles = {j: tuple(rng.uniform(-15.0, 15.0, 3) * (0.4 if j in ("Neck", "Spine") else 1.0)) for j in joints}
+    return {k: float(v) for k, v in shape.items()}, fixture_pose(body, angles)
