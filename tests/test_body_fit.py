@@ -228,3 +228,32 @@ def test_cli_fit_with_keypoints_and_ground_truth(anny_scene, tmp_path, capsys):
     assert back.shape == pytest.approx(result["shape"])
     assert np.allclose(body.forward(back.shape, back.rotations, back.translation).vertices, back.mesh.vertices,
                        atol=1e-5)
+
+
+@pytest.mark.slow
+@needs_anny
+def test_reconstruct_stage_fits_a_capture_without_body_truth_and_reuses_its_result(anny_scene, tmp_path):
+    from pgc.config import load
+    from pgc.events import Reporter
+    from pgc.io.capture import read_capture, write_capture
+    from pgc.pipeline.cache import StageCache, file_key
+    from pgc.pipeline.reconstruct import STAGES, ReconstructInputs, has_body_truth
+    from pgc.pipeline.runner import StageContext, StageRunner
+
+    capture = anny_scene[1]["loose"][0]
+    cap = tmp_path / "cap"
+    write_capture(cap, capture)
+    assert not has_body_truth(cap)
+    (tmp_path / "c.toml").write_text("[stages.body_fit]\niterations = 30\nviews = 4\n")
+    cfg = load(tmp_path / "c.toml")
+    stage, step = next(pair for pair in STAGES if pair[0].name == "body_fit")
+    values = []
+    for _ in range(2):
+        ctx = StageContext(cfg, Reporter.silent(), ReconstructInputs(read_capture(cap)))
+        runner = StageRunner(StageCache(tmp_path / "stages"), ctx, {"capture": file_key(cap)})
+        values.append(runner.run(stage, step))
+    assert runner.seconds["body_fit"] == 0.0  # the second run loads the stored fit
+    first, second = values
+    assert first.figures["iterations"] <= 30 and first.figures["views"] == 4
+    assert second.shape == pytest.approx(first.shape) and np.allclose(second.rotations, first.rotations)
+    assert np.allclose(second.mesh.vertices, first.mesh.vertices, atol=1e-6)

@@ -8,11 +8,12 @@ Per view (every length in pixels of that view):
 - pixels labelled body must be covered as much as the mask says: ``(s - mask)^2``; every other pixel may be
   covered at most that much: ``relu(s - mask)^2`` (a garment may hide body, never the background);
 - every vertex projects inside the person's mask: the squared distance transform of the mask's outside;
-- keypoints (``KEYPOINTS_DIR/<view>.json``): the squared pixel distance of the projected joints, by confidence;
+- keypoints (:mod:`pgc.io.keypoints`): the squared pixel distance of the projected joints, by confidence;
 - a prior on the squared joint angles keeps what no view constrains at rest.
-Three phases narrow ``sigma`` (1.5, 0.6, 0.3 px; the silhouette term is scaled by ``sigma`` so
-its gradient keeps its size) and the band of pixels around the edge; every joint that carries skin is
-posed (joints skinning less than :data:`MIN_JOINT_SKIN` of the vertices, fingers and toes, stay at rest); the last stops when the loss no longer falls (``tolerance``). Docs: docs/body.md, "Body fit".
+Three phases narrow ``sigma`` (:data:`PHASES`; the silhouette term is scaled by ``sigma`` so its gradient keeps its
+size) and the band of pixels around the edge; every joint that carries skin is posed (those skinning less than
+:data:`MIN_JOINT_SKIN` of the vertices, fingers and toes, stay at rest); the last phase stops when the loss no
+longer falls (``tolerance``). Docs: docs/body.md, "Body fit".
 """
 
 from __future__ import annotations
