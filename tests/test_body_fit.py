@@ -196,7 +196,7 @@ def test_fit_recovers_a_known_anny_body_at_64_px(anny_scene, garment):
     assert err["kind"] == "per_vertex" and err["under_garment"]["vertices"] > 100
     # 64 px: a pixel is about 3.6 cm at the body; the fit is sub-pixel
     assert err["mean"] < 0.02, err
-    assert fit.figures["silhouette_iou"] > 0.9
+    assert fit.figures["silhouette_iou"] > 0.8  # the body against the person: a loose garment adds its own outline
     start = vertex_error(body.forward(None, None, fit.translation).vertices, Mesh(state.vertices, state.faces))
     assert err["mean"] < 0.5 * start["mean"]
 

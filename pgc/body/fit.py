@@ -11,8 +11,8 @@ Per view (every length in pixels of that view):
 - keypoints (:mod:`pgc.io.keypoints`): the squared pixel distance of the projected joints, by confidence;
 - a prior on the squared joint angles keeps what no view constrains at rest.
 Three phases narrow ``sigma`` (:data:`PHASES`; the silhouette term is scaled by ``sigma`` so its gradient keeps its
-size) and the band of pixels around the edge; every joint that carries skin is posed (those skinning less than
-:data:`MIN_JOINT_SKIN` of the vertices, fingers and toes, stay at rest); the last phase stops when the loss no
+size) and the band of pixels around the edge; every joint that moves enough skin is posed (those that with their
+descendants skin less than :data:`MIN_SUBTREE_SKIN` of the vertices, hands' fingers and feet, stay at rest); the last phase stops when the loss no
 longer falls (``tolerance``). Docs: docs/body.md, "Body fit".
 """
 
@@ -43,8 +43,9 @@ INSIDE_WEIGHT = 0.05
 """Weight of the vertices-inside-the-mask term (px^2 per vertex) against the silhouette term."""
 KEYPOINT_WEIGHT = 0.01
 """Weight of the keypoint term (px^2 per joint)."""
-MIN_JOINT_SKIN = 0.01
-"""Joints whose skinning weights sum to less than this fraction of the vertices (fingers, toes) are not posed."""
+MIN_SUBTREE_SKIN = 0.08
+"""Joints that, with their descendants, skin less than this fraction of the vertices (Anny's fingers, thumbs, feet
+and toes) are not posed: at a few pixels across, their silhouette does not fix their rotation."""
 TRANSLATION_SCALE = 0.1
 """Metres per unit of the optimised translation (so one learning rate suits angles, shape and position)."""
 
@@ -153,6 +154,16 @@ def _edge_faces(faces: np.ndarray) -> np.ndarray:
     count = np.diff(np.r_[start, len(key)])
     other = np.where(count > 1, start + 1, start)
     return np.column_stack([key[start], f[start], f[other]])
+
+
+def posed_joints(body: BodyModel) -> np.ndarray:
+    """(J,) bool: the joints the fit poses (:data:`MIN_SUBTREE_SKIN`)."""
+    subtree = np.asarray(body.weights).sum(axis=0) / len(body.weights)
+    parents = np.asarray(body.parents)
+    for j in range(len(parents) - 1, -1, -1):  # parents come before their children
+        if parents[j] >= 0:
+            subtree[parents[j]] += subtree[j]
+    return subtree >= MIN_SUBTREE_SKIN
 
 
 def _translation_init(views: list[_ViewData]) -> np.ndarray:
@@ -298,7 +309,7 @@ def _fit(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_n
     frac = ((default - low) / (high - low)).clamp(0.02, 0.98)
     shape_logit = torch.log(frac / (1 - frac)).clone().requires_grad_(True)
     angles = torch.zeros(len(names), 3, dtype=dtype, requires_grad=True)
-    posed = torch.as_tensor(np.asarray(body.weights).sum(axis=0) >= MIN_JOINT_SKIN * len(body.weights))
+    posed = torch.as_tensor(posed_joints(body))
     with torch.no_grad():
         rest = body.forward_torch({k: default[i:i + 1] for i, k in enumerate(params)},
                                   torch.eye(3, dtype=dtype).expand(1, len(names), 3, 3), torch.zeros(1, 3, dtype=dtype))
