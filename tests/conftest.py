@@ -133,6 +133,14 @@ def default_scene_renderer():
     return scene_renderer(load(require_available=False))
 
 
+@pytest.fixture(scope="session")
+def default_body_model():
+    """The body model of the default configuration (Anny), as ``pgc synth`` without ``--config`` uses."""
+    from pgc.config import load
+
+    return load(require_available=False).create("body_model")
+
+
 FAKE_PLUGINS = {
     "fakeplug_ok": '''
 from pgc.registry import ImplementationSpec, hookimpl

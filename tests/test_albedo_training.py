@@ -32,7 +32,8 @@ def test_smoke_training_is_reproducible_and_its_record_finite(tmp_path):
 
 
 @pytest.mark.slow
-def test_shipped_model_matches_its_record_and_beats_the_raw_image_on_a_held_out_garment(default_scene_renderer):
+def test_shipped_model_matches_its_record_and_beats_the_raw_image_on_a_held_out_garment(default_scene_renderer,
+                                                                                      default_body_model):
     import hashlib
 
     pytest.importorskip("onnxruntime", reason="the onnx estimator needs onnxruntime (pgc[onnx])")
@@ -46,6 +47,6 @@ def test_shipped_model_matches_its_record_and_beats_the_raw_image_on_a_held_out_
     assert record["data"]["validation"]["garment"] == "dress" != record["data"]["train"]["garment"]
     # a fresh scene of the garment the network never saw (a seed outside the training and validation sets)
     data = make_albedo_data("dress", scenes=1, views=3, resolution=record["data"]["resolution"], seed=777,
-                            renderer=default_scene_renderer)
+                            renderer=default_scene_renderer, body_model=default_body_model)
     scores = evaluate(OnnxAlbedoEstimator().estimate, data)
     assert scores["albedo_error"] < scores["raw_image_error"]

@@ -109,17 +109,17 @@ def test_separable_filter_is_the_2d_correlation(ops, padding):
     """Against the window outer(taps, taps) summed directly over a padded image (zeros, or mirrored with the
     edge repeated); a non-symmetric window checks that it correlates (no flip) along the right axes."""
     rng = np.random.default_rng(1)
-    image = rng.uniform(size=(9, 12, 2))
+    images = rng.uniform(size=(2, 2, 9, 12))
     taps = np.array([0.1, 0.2, 0.6, 0.3, -0.2])
     r = len(taps) // 2
     mode = "constant" if padding == "zeros" else "symmetric"
-    padded = np.pad(image, ((r, r), (r, r), (0, 0)), mode=mode)
+    padded = np.pad(images, ((0, 0), (0, 0), (r, r), (r, r)), mode=mode)
     window = np.outer(taps, taps)
-    want = np.zeros_like(image)
-    for i in range(image.shape[0]):
-        for j in range(image.shape[1]):
-            want[i, j] = (window[:, :, None] * padded[i:i + len(taps), j:j + len(taps)]).sum((0, 1))
-    got = ops.to_numpy(ops.separable_filter(ops.asarray(image, dtype="float64"), taps, padding))
+    want = np.zeros_like(images)
+    for i in range(images.shape[2]):
+        for j in range(images.shape[3]):
+            want[:, :, i, j] = (window * padded[:, :, i:i + len(taps), j:j + len(taps)]).sum((2, 3))
+    got = ops.to_numpy(ops.separable_filter(ops.asarray(images, dtype="float64"), taps, padding))
     np.testing.assert_allclose(got, want, rtol=TOL, atol=TOL)
 
 
@@ -127,8 +127,8 @@ def test_numpy_reflect_filter_is_scipy_gaussian_filter_bit_for_bit():
     """With scipy's taps the numpy filter is ``gaussian_filter(sigma, truncate=3.5, mode='reflect')``."""
     from scipy.ndimage import gaussian_filter
 
-    image = np.random.default_rng(2).uniform(size=(16, 13, 3))
-    want = gaussian_filter(image, sigma=(1.5, 1.5, 0), truncate=3.5, mode="reflect")
+    image = np.random.default_rng(2).uniform(size=(2, 3, 16, 13))
+    want = gaussian_filter(image, sigma=(0, 0, 1.5, 1.5), truncate=3.5, mode="reflect")
     np.testing.assert_array_equal(NP.separable_filter(image, gaussian_taps(), "reflect"), want)
 
 
@@ -137,7 +137,7 @@ def test_separable_filter_gradients():
     torch = pytest.importorskip("torch")
     jax = pytest.importorskip("jax")
     rng = np.random.default_rng(3)
-    image, weights = rng.uniform(size=(4, 5, 1)), rng.normal(size=(4, 5, 1))
+    image, weights = rng.uniform(size=(1, 1, 4, 5)), rng.normal(size=(1, 1, 4, 5))
     taps = gaussian_taps(1.0, 5)
     t_ops, j_ops = array_ops("torch"), array_ops("jax")
     for padding in ("zeros", "reflect"):
@@ -174,11 +174,11 @@ def test_bad_requests_are_one_clear_error():
     with pytest.raises(PGCConfigError, match="unknown array library 'cupy'; use one of: numpy, torch, jax"):
         array_ops("cupy")
     with pytest.raises(PGCConfigError, match="padding 'wrap' is not one of zeros, reflect"):
-        NP.separable_filter(np.zeros((4, 4, 1)), [1.0], "wrap")
+        NP.separable_filter(np.zeros((1, 1, 4, 4)), [1.0], "wrap")
     with pytest.raises(PGCConfigError, match="odd number of taps"):
-        NP.separable_filter(np.zeros((4, 4, 1)), [0.5, 0.5])
-    with pytest.raises(PGCConfigError, match=r"\(H, W, C\) image"):
-        NP.separable_filter(np.zeros((4, 4)), [1.0])
+        NP.separable_filter(np.zeros((1, 1, 4, 4)), [0.5, 0.5])
+    with pytest.raises(PGCConfigError, match=r"\(N, C, H, W\) batch of images"):
+        NP.separable_filter(np.zeros((4, 4, 1)), [1.0])
 
 
 def test_importing_the_layer_imports_neither_torch_nor_jax():

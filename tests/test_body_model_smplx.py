@@ -15,7 +15,7 @@ torch = pytest.importorskip("torch", reason="the 'smplx' body model needs torch 
 from pgc.errors import PGCConfigError, PGCDataError  # noqa: E402
 from pgc.registry import Registry  # noqa: E402
 from pgc.motion.rotations import axis_angle_to_matrix  # noqa: E402
-from pgc.synth.skeleton import global_transforms  # noqa: E402
+from pgc.roles.body_model import global_transforms  # noqa: E402
 from pgc.testing.body_scenes import SMPL_PARENTS, tiny_smpl_arrays  # noqa: E402
 
 def smpl_numpy(data: dict, betas: np.ndarray, rotations: np.ndarray, translation: np.ndarray) -> np.ndarray:

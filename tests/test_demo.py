@@ -17,13 +17,28 @@ def test_tiny_demo_runs_end_to_end_and_reports_every_variant(tmp_path, monkeypat
     monkeypatch.setattr(render, "choose_kernel", lambda *a: calls.append(1) or rule(*a))
     out = tmp_path / "demo"
     assert main(["demo", "--preset", "tiny", "--out", str(out), "--quiet"]) == 0
-    assert len(calls) <= 1  # one asset, three motions: the kernel rule runs once per process
+    assert len(calls) <= 1  # one asset, four motions: the kernel rule runs once per process
     metrics = json.loads((out / "metrics.json").read_text())
     for variant in ("hybrid", "3dgs_only", "pbr_only"):
         for name in ("psnr", "ssim", "fsim", "lpips"):
             assert np.isfinite(metrics[variant][name]), (variant, name)
-    assert set(metrics["motions"]) == {"goalpost", "spooky", "arms-up"}
+    assert set(metrics["motions"]) == {"goalpost", "spooky", "arms-up", "cmu:02_01"}  # the paper's and a CMU clip
     assert (out / "report.html").is_file() and any((out / "report").glob("*.png"))
+    # every variant under the capture light and two novel lights, each measured against truth under it
+    assert list(metrics["lights"]) == ["capture", "sky-rot90", "low-key"]
+    assert metrics["lights"]["capture"]["hybrid"] == metrics["motions"]["spooky"]["hybrid"]  # on the relit motion
+    for name, light in metrics["lights"].items():
+        assert light["light"]["kind"] == ("capture" if name == "capture" else "envmap")
+        assert set(light["motions"]) == {"spooky"}
+        for variant in ("hybrid", "3dgs_only", "pbr_only"):
+            assert np.isfinite(light[variant]["psnr"]) and np.isfinite(light[variant]["lpips"])
+    relit = out / "runs" / "spooky" / "relit" / "low-key"
+    assert json.loads((relit / "metrics.json").read_text())["light"] == metrics["lights"]["low-key"]["light"]
+    assert metrics["lights"]["low-key"]["light"]["sha256"] != metrics["lights"]["sky-rot90"]["light"]["sha256"]
+    assert metrics["lights"]["sky-rot90"]["light"]["rotation_deg"] == 90.0
+    assert not (out / "runs" / "goalpost" / "relit").exists()
+    page = (out / "report.html").read_text()
+    assert "Under novel lights" in page and "low-key_spooky_" in page and "_gt.png" in page
     # the hybrid takes the far field's outline (silhouette = "far"); with the mesh as far field, the mesh's
     render = out / "runs" / "goalpost" / "render"
     meta = json.loads((render / "render.json").read_text())

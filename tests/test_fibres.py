@@ -180,14 +180,14 @@ def test_material_record_names_the_appearance(fabric):
 
 
 @pytest.mark.slow
-def test_a_fibre_capture_writes_its_appearance_and_reads_back(tmp_path, default_scene_renderer):
+def test_a_fibre_capture_writes_its_appearance_and_reads_back(tmp_path, default_scene_renderer, default_body_model):
     from pgc.synth.frames import render_frames
     from pgc.synth.generate import generate, get_preset
     from pgc.synth.ground_truth import read_ground_truth
 
     out = tmp_path / "knit"
     capture = generate(out, get_preset("tiny", views=1, resolution=32, fibre_scale=0.2), fabric="knit", seed=2,
-                       renderer=default_scene_renderer)
+                       renderer=default_scene_renderer, body_model=default_body_model)
     doc = json.loads((out / "ground_truth" / "material.json").read_text())
     gt = read_ground_truth(out)
     assert doc["appearance"] == "hair-fibres" and gt.fibres.hair == fabrics.FABRICS["knit"].hair

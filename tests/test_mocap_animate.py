@@ -33,15 +33,16 @@ seconds = 0.4
 
 
 @pytest.fixture(scope="module")
-def scene(tmp_path_factory) -> Path:
+def scene(tmp_path_factory, default_body_model) -> Path:
     """An asset (a coarse fitted t-shirt on the synthetic body) and the capture holding that body's model."""
     from pgc.io.asset import write_asset
     from pgc.synth.body import make_body
     from pgc.synth.garments import make_garment
+    from pgc.synth.ground_truth import write_body_model
     from pgc.types import GarmentAsset, GaussianSet, Light, Material
 
     root = tmp_path_factory.mktemp("mocap_scene")
-    body = make_body(edge_length=0.05)
+    body = make_body(default_body_model)
     garment = make_garment(body, "tshirt", resolution=0.05)
     rng = np.random.default_rng(0)
     n = 8
@@ -53,9 +54,7 @@ def scene(tmp_path_factory) -> Path:
                                              light=Light(radiance=np.ones(3)), config={}, figures={}))
     gt = root / "capture" / "ground_truth"
     gt.mkdir(parents=True)
-    np.savez(gt / "body_model.npz", vertices=body.vertices, faces=body.faces, joints=body.joints,
-             parents=body.parents, weights=body.weights,
-             shape=np.array([body.shape.height, body.shape.girth, body.shape.shoulder_width]))
+    write_body_model(gt, body)
     (root / "config.toml").write_text(CONFIG)
     return root
 

@@ -111,7 +111,7 @@ def test_the_demo_capture_is_regenerated_when_the_scene_renderer_changes(tmp_pat
 
     rendered = []
 
-    def generate(folder, preset, seed, reporter, renderer):
+    def generate(folder, preset, seed, reporter, renderer, body_model):
         folder.mkdir(parents=True, exist_ok=True)
         rendered.append(renderer.options.max_depth)
 

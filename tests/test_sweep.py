@@ -127,6 +127,7 @@ def test_make_capture_passes_the_scene_spec_as_pgc_synth_does(tmp_path, monkeypa
     make_capture(spec | {"framing": None, "detail": None}, str(tmp_path / "captures" / "k-def"), {}, "(test)",
                  str(tmp_path))
     assert all(kw.pop("renderer").role == "scene_renderer" for _, kw in calls)  # the configuration's
+    assert all(kw.pop("body_model").role == "body_model" for _, kw in calls)
     # `pgc synth OUT --preset knit --fabric fleece --seed 2 --framing body --detail seams --fit loose --looseness 0.03`
     assert calls[0] == (get_preset("knit", framing="body"), {"garment": None, "fabric": "fleece", "seed": 2,
                                                             "looseness": 0.03, "detail": "seams", "fit": "loose"})
@@ -227,6 +228,7 @@ base = "tiny"
 config = "{fast}"
 steps = ["reconstruct", "animate", "render", "eval"]
 motions = ["goalpost"]
+lights = ["capture", "low-key"]
 [scenes.s]
 preset = "tiny"
 [configurations.four-views]
@@ -269,7 +271,12 @@ def test_tiny_sweep_shares_the_asset_and_the_simulation(tiny_sweep):
     path, out, result = tiny_sweep
     assert result["failed"] == {} and result["computed"] == 4  # capture, one asset, two runs
     records = result["records"]
-    assert len(records) == 6 and {r["variant"] for r in records} == {"hybrid", "3dgs_only", "pbr_only"}
+    assert len(records) == 12 and {r["variant"] for r in records} == {"hybrid", "3dgs_only", "pbr_only"}
+    assert {r["light"] for r in records} == {"capture", "low-key"}
+    for r in records:  # the low key light's frames and truth live in the run's relit run
+        folder = Path(r["run"]) / ("relit/low-key" if r["light"] == "low-key" else "")
+        assert json.loads((folder / "metrics.json").read_text())["light"]["kind"] == (
+            "envmap" if r["light"] == "low-key" else "capture")
     assert len({r["asset"] for r in records}) == 1 and len({r["run"] for r in records}) == 2
     one = next(r for r in records if r["configuration"] == "one-view")
     run = json.loads((out / "results" / f"run-{Path(one['run']).name.rsplit('-', 1)[1]}.json").read_text())
@@ -282,7 +289,7 @@ def test_tiny_sweep_shares_the_asset_and_the_simulation(tiny_sweep):
     html = (out / "sweep.html").read_text()
     assert "four-views" in html and "plots/speed-error.png" in html
     assert (out / "plots" / "metric-psnr.png").stat().st_size > 5000
-    assert len((out / "sweep.csv").read_text().splitlines()) == 7
+    assert len((out / "sweep.csv").read_text().splitlines()) == 13
 
 
 @pytest.mark.slow

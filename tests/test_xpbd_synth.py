@@ -14,10 +14,10 @@ pytest.importorskip("scipy")
 
 
 @pytest.fixture(scope="module")
-def body():
+def body(default_body_model):
     from pgc.synth.body import make_body
 
-    return make_body()
+    return make_body(default_body_model)
 
 
 @pytest.mark.slow

@@ -18,6 +18,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                "  a captured clip    an Acclaim .amc (its skeleton: the subject's .asf beside it, 02_01.amc ->\n"
                "                     02.asf, or --skeleton FILE) or a .bvh; retargeted onto the body, resampled\n"
                "                     to 30 fps and blended in from the capture pose over 0.5 s\n"
+               "  an SMPL pose clip  an .npz in AMASS's layout ('poses', 'trans', 'mocap_framerate', 'betas'),\n"
+               "                     with [body_model] use = \"smplx\" and its model_path (the clip's skeleton)\n"
                "  body vertices      an .npz with 'vertices' (T, V, 3) and 'faces', or a folder of OBJ frames,\n"
                "                     whose frame 0 is the capture pose\n"
                "Built-in motions and clips move the body model of the synthetic capture the asset came from.\n"
@@ -26,7 +28,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                "examples:\n"
                "  pgc animate runs/asset --motion spooky --out runs/spooky\n"
                "  pgc animate runs/asset --motion cmu:02_01 --out runs/walk\n"
-               "  pgc animate runs/asset --motion take.amc --skeleton actor.asf --clip-fps 60 --out runs/take",
+               "  pgc animate runs/asset --motion take.amc --skeleton actor.asf --clip-fps 60 --out runs/take\n"
+               "  pgc animate runs/asset --motion take.bvh --joint-map names.json --out runs/take",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("asset", help="asset folder (from pgc reconstruct)")
     p.add_argument("--motion", required=True, help="built-in motion name, captured clip (.amc, .bvh, "
@@ -41,6 +44,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "default is its Frame Time)")
     p.add_argument("--clip-unit", type=float, metavar="METRES",
                    help="metres per length unit of a .bvh clip (default 0.01: centimetres; 0.0254: inches)")
+    p.add_argument("--joint-map", metavar="FILE",
+                   help="JSON object of clip joint -> rig joint names, for a clip whose joints the known maps "
+                        "(CMU ASF, CMU and Mixamo-style BVH, SMPL) do not cover")
     add_run_options(p)
     p.set_defaults(func=run)
 
@@ -56,10 +62,11 @@ def run(args: argparse.Namespace) -> int:
 
     out = check_out_folder(args.out)
     check_not_inside(out, args.asset, "asset folder")
-    clip = ClipOptions(Path(args.skeleton) if args.skeleton else None, args.clip_fps, args.clip_unit)
+    clip = ClipOptions(Path(args.skeleton) if args.skeleton else None, args.clip_fps, args.clip_unit,
+                       Path(args.joint_map) if args.joint_map else None)
     if clip != ClipOptions() and not is_clip(args.motion):
-        raise PGCDataError(f"--skeleton, --clip-fps and --clip-unit are for captured clips (.amc, .bvh); "
-                           f"'{args.motion}' is not one")
+        raise PGCDataError(f"--skeleton, --clip-fps, --clip-unit and --joint-map are for captured clips (.amc, "
+                           f".bvh, AMASS .npz); '{args.motion}' is not one")
     registry, reporter = reporter_for(args)
     cfg = load_config(args, registry)
     asset = read_asset(args.asset)  # manifest, hashes and every file checked before any work

@@ -9,6 +9,8 @@ from pgc.commands._common import (add_run_options, check_out_file, check_run, em
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
+    from pgc.stages.eval import MODES
+
     p = sub.add_parser(
         "eval", help="metrics of a run against ground truth",
         description="Compare the rendered frames of a run with ground truth: PSNR, SSIM, FSIM and LPIPS (the "
@@ -19,6 +21,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("run", help="run folder (rendered with pgc render)")
     p.add_argument("--gt", required=True, help="synthetic capture folder or image folder")
     p.add_argument("--out", help="metrics JSON path (default RUN/metrics.json)")
+    p.add_argument("--mode", choices=MODES, default=MODES[0],
+                   help="ground truth on the run's simulated geometry (appearance, default) or simulated on its own "
+                        "(independent)")
     add_run_options(p)
     p.set_defaults(func=run)
 
@@ -39,8 +44,8 @@ def run(args: argparse.Namespace) -> int:
     registry, reporter = reporter_for(args)
     cfg = load_config(args, registry)
     with writing(args.run, "pgc eval"):
-        res = evaluate_run(args.run, args.gt, cfg, reporter, args.out)
+        res = evaluate_run(args.run, args.gt, cfg, reporter, args.out, args.mode, registry)
     lines = [f"{v:>10}: " + "  ".join(f"{k}={x:.4f}" for k, x in res[v].items() if k != "per_frame")
              for v in VARIANTS]
-    emit(args, res, "\n".join(lines))
+    emit(args, res, f"mode: {args.mode}\n" + "\n".join(lines))
     return 0

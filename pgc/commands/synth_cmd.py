@@ -105,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
     with naming_output(args.paths[0]):
         capture = generate(args.paths[0], preset, garment=args.garment, fabric=args.fabric, seed=args.seed,
                            looseness=args.looseness, reporter=reporter, detail=args.detail, fit=args.fit,
-                           renderer=renderer)
+                           renderer=renderer, body_model=cfg.create("body_model"))
     summary = {"out": capture.root, "views": len(capture.views), "resolution": preset.resolution,
                "spp": preset.spp, "contact_sheet": f"{capture.root}/contact_sheet.png",
                "ground_truth": f"{capture.root}/ground_truth", "seconds": reporter.timings}

@@ -34,6 +34,7 @@ def ssim_map(x: Any, y: Any, padding: str = "reflect") -> Any:
     (3DGS's loss)."""
     ops, x = float_operands(x)
     _, y = float_operands(y)
+    x, y = ops.transpose(x[None], (0, 3, 1, 2)), ops.transpose(y[None], (0, 3, 1, 2))  # (1, C, H, W) once
 
     def blur(a: Any) -> Any:
         return ops.separable_filter(a, TAPS, padding)
@@ -41,7 +42,8 @@ def ssim_map(x: Any, y: Any, padding: str = "reflect") -> Any:
     mx, my = blur(x), blur(y)
     vx, vy, cxy = blur(x * x) - mx * mx, blur(y * y) - my * my, blur(x * y) - mx * my
     c1, c2 = K1 ** 2, K2 ** 2
-    return ((2 * mx * my + c1) * (2 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2))
+    images = ((2 * mx * my + c1) * (2 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2))
+    return ops.transpose(images, (0, 2, 3, 1))[0]
 
 
 def mean_ssim(x: Any, y: Any) -> Any:

@@ -1,6 +1,6 @@
 """The clip type shared by every motion-capture reader: a skeleton and per-frame joint rotations.
 
-Conventions (those of :mod:`pgc.synth.skeleton`): metres, +Y up. In the rest pose every joint rotation is the
+Conventions (those of :mod:`pgc.roles.body_model`): metres, +Y up. In the rest pose every joint rotation is the
 identity and joint axes are aligned with the world's; a joint's local rotation turns its children about the
 joint, ``global_j = global_parent @ local_j`` and ``position_j = position_parent + global_parent @ offset_j``.
 The root joint's position is its rest offset plus the frame's root translation.

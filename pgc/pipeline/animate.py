@@ -71,7 +71,7 @@ def animate(asset_dir: str | Path, motion_spec: str, out: str | Path, cfg: RunCo
     asset = read_asset(asset_dir)
     capture = Path(capture_dir) if capture_dir else source_capture(asset.config)
     settings = cfg.stage("animate")
-    motion = resolve_motion(motion_spec, capture, settings.seconds, clip)
+    motion = resolve_motion(motion_spec, capture, settings.seconds, clip, lambda: cfg.create("body_model"))
     runner = StageRunner(StageCache(out / "stages"), StageContext(cfg, reporter, AnimateInputs(asset, motion)), {
         "asset": asset_key(asset_dir), "motion": {"spec": motion_spec, "vertices": array_key(motion.vertices),
                                                   "faces": array_key(motion.faces), "fps": motion.fps}})

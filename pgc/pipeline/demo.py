@@ -1,8 +1,10 @@
 """``pgc demo``: the whole pipeline on a synthetic scene, measured against its ground truth.
 
-synthetic capture -> reconstruct -> animate on the paper's three test motions (goalpost, spooky, arms-up)
--> hybrid render -> ground-truth renders of the same simulated geometry -> metrics -> report. Every step
-is cached, so a rerun after an interruption resumes; ``metrics.json`` and ``report.html`` land in OUT.
+synthetic capture -> reconstruct -> animate on the paper's three test motions (goalpost, spooky, arms-up) and
+a shipped CMU clip (:data:`DEMO_CLIP`) -> hybrid render -> ground-truth renders of the same simulated geometry
+-> metrics -> report, under the capture light and, on :data:`RELIT_MOTIONS`, under novel lights
+(:mod:`pgc.pipeline.relight`: the motion's relit runs, ``runs/MOTION/relit/LIGHT/``, with their own truth).
+Every step is cached, so a rerun after an interruption resumes; ``metrics.json`` and ``report.html`` land in OUT.
 """
 
 from __future__ import annotations
@@ -14,11 +16,18 @@ from pathlib import Path
 from typing import Any
 
 from pgc import config as config_mod
+from pgc.errors import PGCConfigError
 from pgc.events import Reporter
 from pgc.io.atomic import write_json
 from pgc.pipeline.cache import content_key
 
 PAPER_MOTIONS = ("goalpost", "spooky", "arms-up")
+DEMO_CLIP = "cmu:02_01"
+"""The captured clip the demo adds to the paper's motions: CMU subject 2's walk, retargeted onto the body."""
+DEMO_MOTIONS = PAPER_MOTIONS + (DEMO_CLIP,)
+RELIT_MOTIONS = ("spooky",)
+"""The motions the demo also evaluates under the novel lights (one keeps the default demo within its budget: each
+light on all three motions would add about 3 minutes; docs/pipeline.md, "Novel lights")."""
 
 
 def demo_config(preset: str, user_config: str | Path | None = None, registry=None) -> config_mod.RunConfig:
@@ -42,31 +51,45 @@ def synthetic_capture(folder: Path, preset: str, seed: int, cfg: config_mod.RunC
                       reporter: Reporter | None = None) -> bool:
     """Generate the synthetic capture of ``preset`` and ``seed`` into ``folder`` with ``cfg``'s scene renderer,
     unless the folder already holds it: its key (the preset's settings, the seed and the scene renderer's
-    implementation, options and version) is kept in ``folder/.pgc-synth-key``. Returns whether it generated."""
+    implementation, options and version, and the body model's) is kept in ``folder/.pgc-synth-key``. Returns
+    whether it generated."""
     from pgc.synth.generate import generate, get_preset
     from pgc.synth.render import scene_renderer
 
-    key = content_key("synth", asdict(get_preset(preset)), seed, cfg.role_key("scene_renderer"))
+    key = content_key("synth", asdict(get_preset(preset)), seed, cfg.role_key("scene_renderer"),
+                      cfg.role_key("body_model"))
     marker = Path(folder) / SYNTH_KEY_FILE
     if marker.is_file() and marker.read_text() == key:
         return False
-    generate(folder, preset=preset, seed=seed, reporter=reporter, renderer=scene_renderer(cfg))
+    generate(folder, preset=preset, seed=seed, reporter=reporter, renderer=scene_renderer(cfg),
+             body_model=cfg.create("body_model"))
     marker.write_text(key)
     return True
 
 
 def run_demo(out: str | Path, preset: str = "default", user_config: str | Path | None = None,
-             motions: tuple[str, ...] = PAPER_MOTIONS, seed: int = 0, reporter: Reporter | None = None,
-             registry=None) -> dict[str, Any]:
+             motions: tuple[str, ...] = DEMO_MOTIONS, seed: int = 0, reporter: Reporter | None = None,
+             registry=None, lights: tuple[str, ...] | None = None,
+             relit_motions: tuple[str, ...] = RELIT_MOTIONS) -> dict[str, Any]:
+    """The demo into ``out``; returns the summary written to ``out/metrics.json``: the capture light's means per
+    variant over ``motions`` (top level, and per motion under ``motions``) and, under ``lights``, each evaluated
+    light's means over ``relit_motions`` (the capture light's too, so that they compare like with like).
+    ``lights``: names of :data:`pgc.pipeline.relight.EVAL_LIGHTS` (default all; the capture light always)."""
     from pgc.io.timings import read_timings
     from pgc.pipeline.animate import animate
-    from pgc.pipeline.evaluate import evaluate_run
     from pgc.pipeline.reconstruct import reconstruct
-    from pgc.pipeline.render import choose_kernel, render_run
+    from pgc.pipeline.relight import EVAL_LIGHTS, check_light_names, render_and_evaluate
+    from pgc.pipeline.render import choose_kernel
     from pgc.pipeline.report import write_report
 
     reporter = reporter or Reporter.silent()
     out = Path(out)
+    names = check_light_names(list(lights or EVAL_LIGHTS), "pgc demo --lights")
+    if "capture" not in names:
+        names.insert(0, "capture")  # the relit results are read against it
+    if not relit_motions or not set(relit_motions) <= set(motions):
+        raise PGCConfigError(f"relit motions {list(relit_motions)}: give one or more of the demo's motions "
+                             f"{list(motions)}")
     cfg = demo_config(preset, user_config, registry)
     cfg.check_implementations()
     timings: dict[str, float] = {}
@@ -82,12 +105,12 @@ def run_demo(out: str | Path, preset: str = "default", user_config: str | Path |
     if synthetic_capture(capture, preset, seed, cfg, reporter):
         timings["synth"] = time.perf_counter() - start
     timed("reconstruct", lambda: reconstruct(capture, out / "asset", cfg, reporter))
-    results: dict[str, Any] = {}
+    results: dict[str, dict[str, Any]] = {name: {} for name in names}  # light -> motion -> eval result
     decisions: list = []
 
     def decide_once(renderer, capture_views):
         """The kernel rule depends on the asset, the capture and the config only: one decision serves every
-        motion (taken when the first render stage is computed)."""
+        motion and light (taken when the first render stage is computed)."""
         if not decisions:
             decisions.append(choose_kernel(renderer, capture_views, cfg))
         return decisions[0]
@@ -95,13 +118,19 @@ def run_demo(out: str | Path, preset: str = "default", user_config: str | Path |
     for motion in motions:
         run = out / "runs" / motion
         timed("animate", lambda: animate(out / "asset", motion, run, cfg, capture, reporter))
-        timed("render", lambda: render_run(run, cfg, reporter=reporter, decide=decide_once))
-        results[motion] = timed("eval", lambda: evaluate_run(run, capture, cfg, reporter))
-    summary = summarise(results)
+        for name in names if motion in relit_motions else ("capture",):
+            results[name][motion] = render_and_evaluate(run, capture, cfg, EVAL_LIGHTS[name], out / "lights",
+                                                        reporter, decide_once, timings)
+    summary = summarise(results["capture"])
+    summary["lights"] = {}
+    for name, res in results.items():
+        res = {m: r for m, r in res.items() if m in relit_motions}
+        summary["lights"][name] = {"description": EVAL_LIGHTS[name].description,
+                                   "light": next(iter(res.values()))["light"], **summarise(res)}
     summary.update(preset=preset, seconds=timings, stages=read_timings(out / "asset").get("seconds", {}),
                    config=cfg.to_dict())
     write_json(out / "metrics.json", summary)
-    write_report(out, summary, results)
+    write_report(out, summary, results["capture"])
     return summary
 
 

@@ -1,8 +1,10 @@
 """``pgc eval``: metrics of a rendered run against ground truth, for the hybrid and both ablations.
 
-Ground truth: for a synthetic capture, the run's own frames are rendered with the ground-truth materials
-on matching geometry: the ground-truth garment is tied to the reconstructed rest garment
-(:mod:`pgc.pipeline.transfer`) and carried along its simulated motion; the body follows the run's motion.
+Ground truth: for a synthetic capture, the run's own frames are rendered with the ground-truth materials. Mode
+``appearance`` (default): on matching geometry, the ground-truth garment tied to the reconstructed rest garment
+(:mod:`pgc.pipeline.transfer`) and carried along its simulated motion; the body follows the run's motion. Mode
+``independent``: the truth garment simulated on its own (:mod:`pgc.pipeline.independent`). metrics.json keeps
+each mode evaluated on the same renders under ``modes``; its top level is the appearance result when there is one.
 For a folder of images, ``frame_XXXX_CAMERA.png`` files are compared directly.
 Light: the ground truth is lit as the renders were (``render.json`` field ``light``,
 :mod:`pgc.io.light_record`): the capture light, or the same environment map file turned by the same angle per
@@ -71,17 +73,25 @@ def rendered_frames(run_dir: Path) -> tuple[dict[str, Any], list[int]]:
 
 
 def ground_truth_key(run_dir: Path, capture_dir: Path, camera_names: list[str], cfg: RunConfig,
-                     light: dict[str, Any] | None = None) -> str:
+                     light: dict[str, Any] | None = None, mode: str = "appearance") -> str:
     """The cache key of a run's ground-truth renders: the eval stage's version, the run's simulation, the cameras,
     the capture's scene, the configuration's scene renderer (implementation, options, version) and the light's
     identity (:func:`pgc.io.light_record.identity`; default the capture light), so relit and unrelit truth never
-    mix."""
+    mix, and the evaluation mode (independent: with the truth simulation's settings)."""
     from pgc.pipeline.cache import content_key, file_key
 
     scene = file_key(capture_dir / "ground_truth" / "scene.json")
     return content_key("gt", eval_stage.STAGE.version, file_key(run_dir / "garment.npz"),
                        file_key(run_dir / "body.npz"), camera_names, scene, cfg.role_key("scene_renderer"),
-                       light or {"kind": "capture"})
+                       light or {"kind": "capture"}, *_mode_key(cfg, mode))
+
+
+def _mode_key(cfg: RunConfig, mode: str) -> tuple[Any, ...]:
+    """The mode's part of the ground-truth key (nothing for appearance: its keys predate the modes)."""
+    if mode == "appearance":
+        return ()
+    settings = cfg.stage("eval")
+    return (mode, settings.truth_simulator, settings.truth_resolution, settings.truth_options)
 
 
 def check_scene_renderer_light(renderer: Any, record: dict[str, Any], cfg: RunConfig) -> None:
@@ -100,14 +110,17 @@ def check_scene_renderer_light(renderer: Any, record: dict[str, Any], cfg: RunCo
 
 def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], camera_names: list[str],
                            spp: int, cfg: RunConfig, reporter: Reporter,
-                           light: dict[str, Any] | None = None) -> list[dict[str, np.ndarray]]:
+                           light: dict[str, Any] | None = None, mode: str = "appearance",
+                           registry: Any = None) -> list[dict[str, np.ndarray]]:
     """Ground-truth renders of the run's frames by ``cfg``'s scene renderer under ``light`` (a checked record of
     :func:`pgc.io.light_record.render_light`; default the capture light; an environment map is scaled by the
-    capture's true radiance and turned per frame), cached in ``RUN/gt/<ground_truth_key>``."""
+    capture's true radiance and turned per frame), cached in ``RUN/gt/<ground_truth_key>`` with the light's
+    public record (``light.json``). ``mode``: the truth garment on the run's geometry ('appearance') or simulated
+    on its own ('independent', its simulator found in ``registry``, default the installed plugins)."""
     from pgc.io.asset import read_asset
     from pgc.io.capture import read_capture
     from pgc.io.images import read_envmap
-    from pgc.io.light_record import capture_record, identity, rotation_at
+    from pgc.io.light_record import GT_LIGHT_FILE, capture_record, identity, public, rotation_at
     from pgc.pipeline.transfer import embed, place
     from pgc.synth.frames import render_frames
     from pgc.synth.ground_truth import read_ground_truth
@@ -119,7 +132,7 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
     if light["kind"] != "capture":  # refused before anything is read or rendered
         renderer = scene_renderer(cfg)
         check_scene_renderer_light(renderer, light, cfg)
-    key = ground_truth_key(run_dir, capture_dir, camera_names, cfg, identity(light, frames))
+    key = ground_truth_key(run_dir, capture_dir, camera_names, cfg, identity(light, frames), mode)
     cache = run_dir / "gt" / key  # never a stale frame
     paths = [cache / f"frame_{t:04d}_spp{spp}.npz" for t in frames]
     if all(p.is_file() for p in paths):
@@ -137,23 +150,32 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
     if max(frames) >= len(garment) or len(body) != len(garment):
         raise PGCDataError(f"{run_dir}: rendered frames {frames} do not match the simulated frames "
                            f"({len(garment)} garment, {len(body)} body)")
-    embedding = embed(gt.garment.vertices, asset.garment)
-    gt_garment = np.stack([place(embedding, asset.garment, garment[t]) for t in frames])
+    if mode == "independent":
+        from pgc.pipeline.independent import independent_garment
+
+        gt_garment, body_frames, _ = independent_garment(gt.garment, run_dir, capture_dir, frames, cfg.stage("eval"),
+                                                         registry, reporter)
+    else:
+        embedding = embed(gt.garment.vertices, asset.garment)
+        gt_garment, body_frames = np.stack([place(embedding, asset.garment, garment[t]) for t in frames]), body[frames]
     lights = None
     if light["kind"] == "envmap":
         envmap = read_envmap(light.get("path") or light["file"])
         lights = [Light(gt.light.radiance, envmap=envmap, rotation_deg=rotation_at(light, t)) for t in frames]
-    out = render_frames(gt, gt_garment, body[frames], cameras, lights, spp=spp, reporter=reporter,
+    out = render_frames(gt, gt_garment, body_frames, cameras, lights, spp=spp, reporter=reporter,
                         renderer=renderer or scene_renderer(cfg))
     for p, frame in zip(paths, out):
         save_npz(p, **frame)
+    write_json(cache / GT_LIGHT_FILE, public(light, frames))  # which light, for the report
     return out
 
 
 @dataclass(frozen=True)
 class EvalInputs:
     """What the eval stage reads: the run folder, its checked render metadata, frames and light record, the
-    ground truth (a synthetic capture or an image folder) and where the metrics go (None: RUN/metrics.json)."""
+    ground truth (a synthetic capture or an image folder), where the metrics go (None: RUN/metrics.json), the
+    evaluation mode (:data:`pgc.stages.eval.MODES`) and the registry of the truth simulator (None: the
+    installed plugins)."""
 
     run_dir: Path
     gt: Path
@@ -161,6 +183,8 @@ class EvalInputs:
     frames: list[int]
     light: dict[str, Any]
     out: Path | None
+    mode: str = "appearance"
+    registry: Any = None
 
 
 def compute_eval(ctx: StageContext[EvalInputs], folder: Path) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -172,11 +196,20 @@ def compute_eval(ctx: StageContext[EvalInputs], folder: Path) -> tuple[dict[str,
     run_dir, gt, meta, frames, light = inp.run_dir, inp.gt, inp.meta, inp.frames, inp.light
     fix = f"run 'pgc render {run_dir}' (again)"
     metrics = cfg.roles["metric"].create_all()
+    truth_figures = None
     if (gt / "ground_truth").is_dir() or (gt / "scene.json").is_file():
-        truth = synthetic_ground_truth(run_dir, gt if (gt / "ground_truth").is_dir() else gt.parent, frames,
-                                       meta["cameras"], cfg.stage("eval").gt_spp, cfg, reporter, light)
+        capture = gt if (gt / "ground_truth").is_dir() else gt.parent
+        truth = synthetic_ground_truth(run_dir, capture, frames, meta["cameras"], cfg.stage("eval").gt_spp, cfg,
+                                       reporter, light, inp.mode, inp.registry)
         targets = [(f["color"] * f["garment_mask"][..., None], f["garment_mask"]) for f in truth]
+        if inp.mode == "independent":
+            from pgc.pipeline.independent import truth_simulation
+
+            truth_figures = truth_simulation(run_dir, capture, cfg.stage("eval"), inp.registry)[2]
     else:
+        if inp.mode != "appearance":
+            raise PGCDataError(f"--gt {gt}: a folder of images cannot be evaluated in mode '{inp.mode}' (it needs a "
+                               "synthetic capture whose garment can be simulated); give the capture folder")
         check_folder_light(gt, light, frames, run_dir)
         targets = [_image_folder_frame(gt, t, meta["cameras"]) for t in frames]
     per_frame: dict[str, list[dict[str, float]]] = {k: [] for k in VARIANTS}
@@ -198,12 +231,35 @@ def compute_eval(ctx: StageContext[EvalInputs], folder: Path) -> tuple[dict[str,
             st.progress(i + 1)
     result: dict[str, Any] = {"run": str(run_dir), "ground_truth": str(gt), "frames": frames,
                               "cameras": meta["cameras"], "kernel_size": meta.get("kernel_size"),
-                              "light": public(light, frames)}
+                              "light": public(light, frames), "mode": inp.mode,
+                              "render_inputs": render_inputs(run_dir)}
+    if truth_figures is not None:
+        result["truth_simulation"] = truth_figures
     for key, rows in per_frame.items():
         result[key] = {name: float(np.mean([r[name] for r in rows])) for name in metrics}
         result[key]["per_frame"] = rows
-    write_json(inp.out or folder / "metrics.json", result)
+    write_json(inp.out or folder / "metrics.json", with_modes(inp.out or folder / "metrics.json", result))
     return result, {}
+
+
+def with_modes(path: Path, result: dict[str, Any]) -> dict[str, Any]:
+    """The metrics document to write at ``path``: field ``modes`` holds the means of every mode evaluated on the
+    same renders (same simulation, frames, cameras and light; kept from the file already there), the top level
+    is the appearance result when there is one, else ``result``."""
+    keep = ("frames", "cameras", "light", "render_inputs")
+    prev: dict[str, Any] = {}
+    if path.is_file():
+        try:
+            prev = read_json(path, "metrics.json")
+        except PGCDataError:
+            prev = {}  # unreadable: replaced
+    same = isinstance(prev, dict) and isinstance(prev.get("modes"), dict) and all(
+        prev.get(k) == result.get(k) for k in keep)
+    modes = dict(prev["modes"]) if same else {}
+    modes[result["mode"]] = {k: ({m: x for m, x in v.items() if m != "per_frame"} if k in VARIANTS else v)
+                             for k, v in result.items() if k in VARIANTS or k == "truth_simulation"}
+    top = prev if same and result["mode"] != "appearance" and prev.get("mode") == "appearance" else result
+    return {**{k: v for k, v in top.items() if k != "modes"}, "modes": modes}
 
 
 STAGES = ((eval_stage.STAGE, Step(compute_eval)),)
@@ -211,17 +267,22 @@ STAGES = ((eval_stage.STAGE, Step(compute_eval)),)
 
 
 def evaluate_run(run_dir: str | Path, gt: str | Path, cfg: RunConfig, reporter: Reporter | None = None,
-                 out: str | Path | None = None) -> dict[str, Any]:
-    """Metrics per frame and mean for every variant, with the light the renders and the ground truth share
-    (field ``light``); written to ``out`` (default RUN/metrics.json)."""
+                 out: str | Path | None = None, mode: str = "appearance", registry: Any = None) -> dict[str, Any]:
+    """Metrics per frame and mean for every variant in ``mode`` ('appearance' or 'independent'), with the light the
+    renders and the ground truth share (field ``light``); written to ``out`` (default RUN/metrics.json) beside the
+    other mode's means (:func:`with_modes`). ``registry``: where the independent truth's simulator is found."""
     from pgc.pipeline.cache import StageCache
+    from pgc.pipeline.independent import check_mode
+
+    check_mode(mode)
 
     run_dir, gt = Path(run_dir), Path(gt)
     meta, frames = rendered_frames(run_dir)
     fix = f"run 'pgc render {run_dir}' (again)"
     for t in frames:  # before the ground truth is rendered
         check_frame_arrays(run_dir / "render" / f"frame_{t:04d}.npz", fix)
-    inputs = EvalInputs(run_dir, gt, meta, frames, run_light(run_dir, meta, frames), Path(out) if out else None)
+    inputs = EvalInputs(run_dir, gt, meta, frames, run_light(run_dir, meta, frames), Path(out) if out else None,
+                        mode, registry)
     runner = StageRunner(StageCache(run_dir), StageContext(cfg, reporter or Reporter.silent(), inputs), {})
     for stage, step in STAGES:
         runner.run(stage, step)

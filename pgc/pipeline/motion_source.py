@@ -4,7 +4,9 @@ come from the generator (:mod:`pgc.synth`), which the core never imports."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from pgc.errors import PGCDataError
 from pgc.motion.drive import SHIPPED_PREFIX, ClipOptions, clip_body_motion, is_clip, shipped_clip
@@ -12,9 +14,10 @@ from pgc.types import BodyMotion
 
 
 def resolve_motion(spec: str, capture_dir: Path | None, seconds: float | None = None,
-                   clip: ClipOptions = ClipOptions()) -> BodyMotion:
+                   clip: ClipOptions = ClipOptions(), pose_body: Callable[[], Any] | None = None) -> BodyMotion:
     """The BodyMotion of ``--motion SPEC``: a clip (.amc/.bvh file or ``cmu:NAME``, on the capture's body), a
-    motion file (npz or OBJ folder) or a built-in motion name (on the capture's body)."""
+    motion file (npz or OBJ folder) or a built-in motion name (on the capture's body). ``pose_body`` makes the
+    configured body model, which an AMASS pose clip needs for its skeleton (called only for one)."""
     from pgc.synth.motions import MOTIONS, make_motion
 
     path = shipped_clip(spec) if spec.startswith(SHIPPED_PREFIX) else Path(spec)
@@ -35,5 +38,8 @@ def resolve_motion(spec: str, capture_dir: Path | None, seconds: float | None = 
 
     body = read_body_model(capture_dir)
     if is_clip(path):
-        return clip_body_motion(path, body, clip, seconds)
+        from pgc.motion.amass import is_pose_npz
+
+        skeleton_body = pose_body() if pose_body is not None and is_pose_npz(path) else None
+        return clip_body_motion(path, body, clip, seconds, pose_body=skeleton_body)
     return make_motion(body, spec, seconds=seconds)

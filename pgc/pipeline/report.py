@@ -5,7 +5,9 @@ a strip ground truth | 3DGS-only | PBR-only | hybrid with an error heatmap per v
 decomposition ``l(S)`` (low-pass far field) and ``h(G)`` (high-pass near field), a looping animated WebP of
 ground truth and hybrid side by side over the rendered frames, and, when the run was rendered with
 ``--rotate-light``, its relighting strip. Charts (SVG): metrics per motion, stage timings, and speed
-against error from ``pgc bench`` records when given; the first run's garment on its body in an interactive 3D
+against error from ``pgc bench`` records when given; under each novel light (a run's relit runs,
+:mod:`pgc.pipeline.relight`), each motion's frames next to ground truth under that light with error heatmaps, and
+a variant x light table; the first run's garment on its body in an interactive 3D
 viewer (:mod:`pgc.pipeline.report_3d`). Everything lives in ``OUT/report.html`` and
 ``OUT/report/`` (relative links, no network); the page states its own size.
 """
@@ -58,13 +60,36 @@ def read_run_view(folder: Path, motion: str | None = None) -> RunView:
     return RunView(motion or str(run.get("motion", folder.name)), folder, render, run, metrics, frames)
 
 
-def ground_truth_frame(folder: Path, frame: int) -> np.ndarray | None:
-    """(C, H, W, 3) ground-truth garment over black for ``frame`` (the newest cached ground truth), or None."""
-    found = sorted((folder / "gt").glob(f"*/frame_{frame:04d}_spp*.npz"), key=lambda p: p.stat().st_mtime)
+def ground_truth_frame(folder: Path, frame: int, light: dict[str, Any]) -> np.ndarray | None:
+    """(C, H, W, 3) ground-truth garment over black for ``frame`` rendered under ``light`` (a light record; the
+    newest such cached ground truth: its ``light.json`` names the same light, and a cache without one was
+    rendered under the capture light), or None."""
+    from pgc.io.light_record import GT_LIGHT_FILE, capture_record, same_light
+
+    found = []
+    for path in (folder / "gt").glob(f"*/frame_{frame:04d}_spp*.npz"):
+        record_path = path.parent / GT_LIGHT_FILE
+        try:
+            record = read_json(record_path, GT_LIGHT_FILE) if record_path.is_file() else capture_record()
+        except PGCDataError:
+            continue
+        if isinstance(record, dict) and same_light(record, light, [frame]):
+            found.append(path)
     if not found:
         return None
-    with np.load(found[-1]) as gt:
+    with np.load(max(found, key=lambda p: p.stat().st_mtime)) as gt:
         return gt["color"] * gt["garment_mask"][..., None]
+
+
+def render_light_record(view: RunView) -> dict[str, Any] | None:
+    """The light record of the run's frames (:func:`pgc.io.light_record.render_light`), or None when it cannot
+    be checked (an environment map that was not recorded, moved or changed)."""
+    from pgc.pipeline.evaluate import run_light
+
+    try:
+        return run_light(view.folder, view.render, view.frames)
+    except PGCDataError:
+        return None
 
 
 class _Figures:
@@ -96,37 +121,12 @@ class _Figures:
 def _motion_section(view: RunView, f: _Figures) -> str:
     frames = view.frames
     cam = 0
-    preds = [dict(np.load(view.folder / "render" / f"frame_{t:04d}.npz")) for t in frames]
-    relit = is_relit(view)
-    gts = [None if relit else ground_truth_frame(view.folder, t) for t in frames]
-    has_gt = all(g is not None for g in gts)
-    coverage = [p[k][cam] for p in preds for k in ("alpha", "pbr_alpha", "hybrid_alpha") if k in p]
-    if has_gt:
-        coverage += [g[cam].max(-1) for g in gts]
-    box = figs.garment_box(coverage)
-    k = figs.enlarge_factor(box)
-    mid = len(frames) // 2
-    t, pred, gt = frames[mid], preds[mid], gts[mid]
     slug = view.motion.replace("/", "_")
-    layers = {"gt": None if gt is None else gt[cam], "3dgs_only": pred["near"][cam], "pbr_only": pred["pbr"][cam],
-              "hybrid": pred["hybrid"][cam]}
-    heat = [f"<figure style='width:{(box[3] - box[2]) * k}px'><img src='{FIGURES}/error_scale.svg' "
-            "alt='heatmap colour scale' style='width:100%'><figcaption>error heatmaps below each variant: 0 to "
-            f"{figs.ERROR_MAX} linear RGB</figcaption></figure>"] if gt is not None else []
-    cells = _crop_cells(layers, box, k, f, f"{slug}_{t:04d}")
-    for key, label in STRIP:
-        if layers[key] is not None and key != "gt" and gt is not None:
-            hname = f"{slug}_{t:04d}_{key}_error.png"
-            figs.save_png(f.path(hname), figs.heatmap_rgb8(figs.crop(layers[key], box, k), figs.crop(gt[cam], box, k)))
-            psnr = (view.metrics or {}).get(key, {}).get("psnr")
-            heat.append(f.img(hname, f"{label} error" + (f" (PSNR {psnr:.2f} dB, motion mean)" if psnr else ""),
-                              "crop"))
-    if relit:
-        heat.append("<p class='note'>This run is relit: its ground truth and error heatmaps are not shown here "
-                    "(its metrics, when evaluated under its light, are in the metric section).</p>")
-    elif gt is None:
-        heat.append("<p class='note'>No ground truth for this run: error heatmaps need a synthetic capture "
-                    "(<code>pgc eval RUN CAPTURE</code> renders it).</p>")
+    strip = _truth_strip(view, f, slug)
+    preds, gts, box, k, t, layers = strip.preds, strip.gts, strip.box, strip.k, strip.frame, strip.layers
+    has_gt = all(g is not None for g in gts)
+    pred = preds[len(frames) // 2]
+    cells, heat = strip.cells, strip.heat
     detail = _detail_section(layers, pred, cam, f, f"{slug}_{t:04d}")
     dec = []
     for key, label, value in (("low_far", "l(S): low-pass of the far field", pred["low_far"][cam]),
@@ -157,6 +157,56 @@ def _motion_section(view: RunView, f: _Figures) -> str:
             + detail + f"<h4>Decomposition: hybrid = l(S) + h(G)</h4><div class='strip'>{''.join(dec)}</div>"
             f"<h4>In motion</h4><div class='strip'>{f.img(anim, anim_caption, 'anim')}</div>"
             + _relight_section(view, preds, box, k, f, slug, frame_ms))
+
+
+@dataclass
+class TruthStrip:
+    """One run's middle frame, camera 0: ground truth under the frames' light | 3DGS-only | PBR-only | hybrid
+    (``cells``) and an error heatmap per variant (``heat``), cropped to the garment box ``box`` enlarged ``k``
+    times; with every rendered frame (``preds``) and its truth (``gts``, None where there is none)."""
+
+    preds: list[dict[str, np.ndarray]]
+    gts: list[np.ndarray | None]
+    box: tuple[int, int, int, int]
+    k: int
+    frame: int
+    layers: dict[str, np.ndarray | None]
+    cells: list[str]
+    heat: list[str]
+
+
+def _truth_strip(view: RunView, f: _Figures, slug: str, cam: int = 0) -> TruthStrip:
+    frames = view.frames
+    preds = [dict(np.load(view.folder / "render" / f"frame_{t:04d}.npz")) for t in frames]
+    light = render_light_record(view)
+    gts = [None if light is None else ground_truth_frame(view.folder, t, light) for t in frames]
+    coverage = [p[k][cam] for p in preds for k in ("alpha", "pbr_alpha", "hybrid_alpha") if k in p]
+    coverage += [g[cam].max(-1) for g in gts if g is not None]
+    box = figs.garment_box(coverage)
+    k = figs.enlarge_factor(box)
+    mid = len(frames) // 2
+    t, pred, gt = frames[mid], preds[mid], gts[mid]
+    layers = {"gt": None if gt is None else gt[cam], "3dgs_only": pred["near"][cam], "pbr_only": pred["pbr"][cam],
+              "hybrid": pred["hybrid"][cam]}
+    heat = [f"<figure style='width:{(box[3] - box[2]) * k}px'><img src='{FIGURES}/error_scale.svg' "
+            "alt='heatmap colour scale' style='width:100%'><figcaption>error heatmaps below each variant: 0 to "
+            f"{figs.ERROR_MAX} linear RGB</figcaption></figure>"] if gt is not None else []
+    cells = _crop_cells(layers, box, k, f, f"{slug}_{t:04d}")
+    measured = view.metrics if metrics_under_render_light(view) else None
+    for key, label in STRIP:
+        if layers[key] is not None and key != "gt" and gt is not None:
+            hname = f"{slug}_{t:04d}_{key}_error.png"
+            figs.save_png(f.path(hname), figs.heatmap_rgb8(figs.crop(layers[key], box, k), figs.crop(gt[cam], box, k)))
+            psnr = (measured or {}).get(key, {}).get("psnr")
+            heat.append(f.img(hname, f"{label} error" + (f" (PSNR {psnr:.2f} dB, motion mean)" if psnr else ""),
+                              "crop"))
+    if gt is None and is_relit(view):
+        heat.append("<p class='note'>No ground truth under this run's light yet: <code>pgc eval RUN --gt "
+                    "CAPTURE</code> renders it (for a synthetic capture), and the error heatmaps follow.</p>")
+    elif gt is None:
+        heat.append("<p class='note'>No ground truth for this run: error heatmaps need a synthetic capture "
+                    "(<code>pgc eval RUN CAPTURE</code> renders it).</p>")
+    return TruthStrip(preds, gts, box, k, t, layers, cells, heat)
 
 
 def _crop_cells(layers: dict[str, np.ndarray | None], box: tuple[int, int, int, int], k: int, f: _Figures,
@@ -232,6 +282,69 @@ def _relight_section(view: RunView, preds: list[dict], box, k: int, f: _Figures,
             f"{f.img(anim, 'rotating light, looping', 'crop small')}</div>")
 
 
+def _light_means(views: list[RunView]) -> dict[str, dict[str, float]] | None:
+    """Variant -> metric -> mean over the runs whose metrics were measured against truth under their own
+    light (None when there are none)."""
+    measured = [v.metrics for v in views if v.metrics and metrics_under_render_light(v)
+                and all(key in v.metrics for key in VARIANTS)]
+    if not measured:
+        return None
+    names = [n for n in measured[0]["hybrid"] if n != "per_frame"]
+    return {key: {n: float(np.mean([m[key][n] for m in measured])) for n in names} for key in VARIANTS}
+
+
+def _lights_table(means: dict[str, dict[str, dict[str, float]]]) -> str:
+    """Variant x light: every metric (mean over motions), and the PSNR change from the capture light."""
+    lights = list(means)
+    names = list(next(iter(means.values()))["hybrid"])
+    head = "".join(f"<th>{html.escape(light)} {html.escape(n)}</th>" for light in lights for n in names)
+    base = means.get("capture")
+    delta_head = "".join(f"<th>{html.escape(light)} &Delta;PSNR</th>" for light in lights if light != "capture") \
+        if base and "psnr" in names else ""
+    rows = []
+    for key, label in STRIP[1:]:
+        cells = "".join(f"<td>{means[light][key][n]:.4f}</td>" for light in lights for n in names)
+        if delta_head:
+            cells += "".join(f"<td>{means[light][key]['psnr'] - base[key]['psnr']:+.2f} dB</td>"
+                             for light in lights if light != "capture")
+        rows.append(f"<tr><td>{html.escape(label)}</td>{cells}</tr>")
+    return f"<table><tr><th>variant</th>{head}{delta_head}</tr>{''.join(rows)}</table>"
+
+
+def _lights_section(relit: dict[str, list[RunView]], captured: list[RunView], f: _Figures) -> str:
+    """Per novel light: each motion's relit frames next to ground truth under the same light, with error
+    heatmaps; then the variant x light table."""
+    from pgc.io.light_record import describe
+    from pgc.pipeline.relight import EVAL_LIGHTS
+
+    if not relit:
+        return ""
+    parts = ["<h2>Under novel lights</h2><p class='note'>Each motion rendered again under each light (its relit "
+             "run, <code>RUN/relit/LIGHT/</code>: <code>pgc render</code> with <code>--light FILE "
+             "--light-rotation DEG</code>), next to ground truth rendered with the true material under the same "
+             "light on the same geometry. The Gaussians of the near field keep the colours they were fitted "
+             "under; only the far field is relit.</p>"]
+    relit_motions = {v.motion for views in relit.values() for v in views}
+    means = {"capture": _light_means([v for v in captured if v.motion in relit_motions])}  # like with like
+    for name, views in relit.items():
+        light = EVAL_LIGHTS.get(name)
+        record = render_light_record(views[0]) if views else None
+        parts.append(f"<h3>{html.escape(name)}: {html.escape(light.description if light else name)}</h3>"
+                     f"<p class='note'>{html.escape(describe(record))}</p>")
+        for view in views:
+            strip = _truth_strip(view, f, f"{name}_{view.motion.replace('/', '_')}")
+            parts.append(f"<h4>{html.escape(view.motion)}, frame {strip.frame}</h4><div class='strip'>"
+                         f"{''.join(strip.cells)}</div><div class='strip'>{''.join(strip.heat)}</div>")
+        means[name] = _light_means(views)
+    measured = {k: v for k, v in means.items() if v is not None}
+    if measured:
+        parts.append("<h3>Metrics per light</h3><p class='note'>Mean over the motions evaluated under the novel "
+                     f"lights ({html.escape(', '.join(sorted(relit_motions)))}), each against truth under its own "
+                     "light, restricted to the garment; &Delta;PSNR: the change from the capture light on the same "
+                     "motions.</p>" + _lights_table(measured))
+    return "".join(parts)
+
+
 def _metric_table(per_motion: dict[str, dict[str, dict[str, float]]]) -> str:
     variants = list(next(iter(per_motion.values())))
     names = list(next(iter(per_motion.values()))[variants[0]])
@@ -279,14 +392,16 @@ window.addEventListener('load', function () {
 
 
 def build_report(out: Path, title: str, views: list[RunView], summary: dict[str, Any],
-                 bench: Path | None = None) -> dict[str, Any]:
+                 bench: Path | None = None, relit: dict[str, list[RunView]] | None = None) -> dict[str, Any]:
     """Write ``out/report.html`` and ``out/report/``; returns {path, files, bytes}. ``summary``: the demo's
-    metrics.json (``preset``, ``seconds``, ``stages``, ``config``; per-motion metrics come from ``views``)."""
+    metrics.json (``preset``, ``seconds``, ``stages``, ``config``; per-motion metrics come from ``views``).
+    ``relit``: light name -> the relit runs of ``views`` under it (:mod:`pgc.pipeline.relight`)."""
     out = Path(out)
     if not views:
         raise PGCDataError(f"{out}: no rendered runs to report; run 'pgc demo' or 'pgc render RUN' first")
     f = _Figures(out)
     sections = "".join(_motion_section(v, f) for v in views)
+    lights = _lights_section(relit or {}, views, f)
     per_motion = {v.motion: {key: {n: x for n, x in v.metrics[key].items() if n != "per_frame"} for key in VARIANTS}
                   for v in views if v.metrics and metrics_under_render_light(v)
                   and all(key in v.metrics for key in VARIANTS)}
@@ -328,8 +443,8 @@ def build_report(out: Path, title: str, views: list[RunView], summary: dict[str,
                       "DIR</code>, then <code>pgc report FOLDER --bench DIR</code>.</p>")
     if any(f_.name.endswith("_error.png") for f_ in f.written):
         figs.colourbar_svg(f.path("error_scale.svg"))
-    relit = any(v.render.get("light", {}).get("rotating") for v in views)
-    relight_note = "" if relit else (
+    relit_shown = bool(relit) or any(v.render.get("light", {}).get("rotating") for v in views)
+    relight_note = "" if relit_shown else (
         "<p class='note'>No relit run here. Make one with <code>pgc render RUN --light sky.exr --rotate-light</code>"
         " (the environment turns 360 degrees over the frames; a synthetic capture ships environment maps in "
         "<code>CAPTURE/ground_truth/envmaps/</code>), then <code>pgc report RUN</code>. Rendering replaces the "
@@ -349,6 +464,7 @@ ground truth rendered with the true material on the same simulated geometry. Eac
 and enlarged by whole pixels (nearest neighbour), so every rendered pixel is visible.</p>
 <p id="load-check">pictures not checked yet</p>
 <h2>Motions</h2>{sections}{relight_note}
+{lights}
 {view3d}
 {''.join(charts)}
 {config_html}
@@ -367,8 +483,20 @@ def write_report(out: str | Path, summary: dict[str, Any], results: dict[str, di
     """The demo's report: ``OUT/report.html`` from the evaluated runs of ``results`` (motion -> eval result)."""
     out = Path(out)
     views = [read_run_view(_run_folder(out, motion, res), motion) for motion, res in results.items()]
-    build_report(out, f"PGC demo: preset '{summary.get('preset')}'", views, summary)
+    build_report(out, f"PGC demo: preset '{summary.get('preset')}'", views, summary, relit=relit_views(views))
     return out / "report.html"
+
+
+def relit_views(views: list[RunView]) -> dict[str, list[RunView]]:
+    """Light name -> the rendered relit runs of ``views`` under it (:func:`pgc.pipeline.relight.light_folders`)."""
+    from pgc.pipeline.relight import light_folders
+
+    out: dict[str, list[RunView]] = {}
+    for view in views:
+        for name, folder in light_folders(view.folder).items():
+            if name != "capture":
+                out.setdefault(name, []).append(read_run_view(folder, view.motion))
+    return out
 
 
 def _asset_folder(out: Path, view: RunView) -> Path:
@@ -395,7 +523,7 @@ def report_folder(folder: str | Path, bench: str | Path | None = None) -> dict[s
     if (folder / "run.json").is_file():
         view = read_run_view(folder)
         summary = _run_summary(view)
-        return build_report(folder, f"PGC run: {view.motion}", [view], summary, bench_path)
+        return build_report(folder, f"PGC run: {view.motion}", [view], summary, bench_path, relit_views([view]))
     metrics = folder / "metrics.json"
     if not (folder / "runs").is_dir():
         raise PGCDataError(f"{folder}: neither a run folder (no run.json) nor a demo folder (no runs/); give the "
@@ -405,7 +533,8 @@ def report_folder(folder: str | Path, bench: str | Path | None = None) -> dict[s
     order = list(summary.get("motions", {}))
     runs.sort(key=lambda p: order.index(p.name) if p.name in order else len(order))
     views = [read_run_view(p, p.name) for p in runs]
-    return build_report(folder, f"PGC demo: preset '{summary.get('preset', '?')}'", views, summary, bench_path)
+    return build_report(folder, f"PGC demo: preset '{summary.get('preset', '?')}'", views, summary, bench_path,
+                        relit_views(views))
 
 
 def _run_summary(view: RunView) -> dict[str, Any]:

@@ -13,8 +13,8 @@ Contract
   :attr:`BodyModel.joint_names` lists it. :attr:`BodyModel.weights` (V, J): the linear-blend-skinning weights,
   non-negative up to round-off (1e-9), rows summing to 1.
 - Pose: ``rotations`` (..., J, 3, 3) local rotations in the world-aligned axes of the rest pose, each about its
-  joint's rest position (identity = rest pose; ``global_j = global_parent @ local_j``, the convention of
-  :mod:`pgc.synth.skeleton`), and ``translation`` (..., 3) metres added to every point.
+  joint's rest position (identity = rest pose; ``global_j = global_parent @ local_j``; :func:`global_transforms`
+  in numpy, :func:`global_transforms_torch` in torch), and ``translation`` (..., 3) metres added to every point.
 - :meth:`BodyModel.forward` -> :class:`BodyState`: vertices (V, 3), joints (J, 3) and skinning transforms
   (J, 4, 4) (rest point -> posed point) in float64, and the faces (F, 3) int64, counter-clockwise seen from
   outside. :meth:`BodyModel.skin` poses a clip: (T, J, 3, 3) and (T, 3) -> (T, V, 3) float32.
@@ -221,3 +221,30 @@ def global_transforms_torch(joints: "torch.Tensor", parents: np.ndarray, rotatio
     bottom = torch.zeros_like(top[..., :1, :])
     bottom[..., 0, 3] = 1.0
     return torch.cat([top, bottom], dim=-2)
+
+
+def global_transforms(joints: np.ndarray, parents: np.ndarray, rotations: np.ndarray,
+                      translation: np.ndarray | None = None) -> np.ndarray:
+    """Skinning transforms (..., J, 4, 4) of the role's pose convention (numpy, float64): ``joints`` (J, 3) rest
+    positions, ``rotations`` (..., J, 3, 3) local world-aligned rotations about each joint (parents first),
+    ``translation`` (..., 3) metres added to every point (default none)."""
+    rotations = np.asarray(rotations, dtype=np.float64)
+    J = len(parents)
+    if rotations.shape[-3:] != (J, 3, 3):
+        raise PGCDataError(f"joint rotations must have shape (..., {J}, 3, 3), got {rotations.shape}")
+    batch = rotations.shape[:-3]
+    shift = np.zeros(batch + (3,)) if translation is None else np.broadcast_to(translation, batch + (3,))
+    rot_g = np.empty_like(rotations)
+    pos_g = np.empty(batch + (J, 3))
+    for j, p in enumerate(np.asarray(parents).tolist()):
+        if p < 0:
+            rot_g[..., j, :, :] = rotations[..., j, :, :]
+            pos_g[..., j, :] = joints[j] + shift
+        else:
+            rot_g[..., j, :, :] = rot_g[..., p, :, :] @ rotations[..., j, :, :]
+            pos_g[..., j, :] = pos_g[..., p, :] + np.einsum("...ab,b->...a", rot_g[..., p, :, :], joints[j] - joints[p])
+    out = np.zeros(batch + (J, 4, 4))
+    out[..., :3, :3] = rot_g
+    out[..., :3, 3] = pos_g - np.einsum("...jab,jb->...ja", rot_g, joints)
+    out[..., 3, 3] = 1.0
+    return out

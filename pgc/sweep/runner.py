@@ -13,13 +13,13 @@ from pgc.sweep.work import Unit, plan
 
 
 def records_of(sweep: Sweep, units: list[Unit], results: dict[str, Any], failed: dict[str, str]) -> list[dict]:
-    """One record per unit and variant (per unit when the sweep has no 'eval'); a unit whose task failed gives
-    one record with ``failed`` and no metrics."""
+    """One record per unit, light and variant (per unit when the sweep has no 'eval'); a unit whose task failed
+    gives one record with ``failed`` and no metrics."""
     out = []
     for u in units:
         s = u.scene.synth or {}
         base = {"sweep": sweep.name, "scene": u.scene.name, "configuration": u.configuration.name, "motion": u.motion,
-                "variant": None, **{k: s.get(k) for k in SCENE_RECORD_FIELDS},
+                "light": None, "variant": None, **{k: s.get(k) for k in SCENE_RECORD_FIELDS},
                 "capture": u.capture}
         bad = next((failed[k] for k in (u.asset_task, u.run_task) if k in failed), None)
         if bad is not None:
@@ -31,7 +31,8 @@ def records_of(sweep: Sweep, units: list[Unit], results: dict[str, Any], failed:
                  "run": run["run"] if run else None,
                  "seconds": {"reconstruct": asset["seconds"], **(run["seconds"] if run else {})}}
         if run and run["metrics"]:
-            out += [base | {"variant": v, "metrics": m} for v, m in run["metrics"].items()]
+            out += [base | {"light": light, "variant": v, "metrics": m}
+                    for light, per_variant in run["metrics"].items() for v, m in per_variant.items()]
         else:
             out.append(base | {"metrics": dict(asset["figures"])})
     return out

@@ -21,7 +21,7 @@ from pgc.io.limits import read_toml
 
 STEPS = ("reconstruct", "animate", "render", "eval")
 """The steps in pipeline order; a sweep runs a prefix of them."""
-SWEEP_KEYS = {"name", "base", "config", "steps", "motions"}
+SWEEP_KEYS = {"name", "base", "config", "steps", "motions", "lights"}
 SYNTH_KEYS = {"preset", "garment", "fabric", "seed", "framing", "detail", "fit", "looseness"}
 SCENE_KEYS = SYNTH_KEYS | {"capture"}
 NUMERIC_KEYS = ("seed", "looseness")
@@ -32,7 +32,7 @@ TABLE_KEYS = {"rows", "columns", "metrics", "where"}
 TOP_KEYS = {"sweep", "scenes", "configurations", "table"}
 SCENE_RECORD_FIELDS = ("preset", "garment", "fabric", "seed", "framing", "detail", "fit", "looseness")
 """A synthetic scene's keys as every record carries them (None where the scene left one to its preset)."""
-RECORD_FIELDS = ("scene", "configuration", "motion", "variant", *SCENE_RECORD_FIELDS)
+RECORD_FIELDS = ("scene", "configuration", "motion", "light", "variant", *SCENE_RECORD_FIELDS)
 """Record fields a table may group or filter by."""
 
 
@@ -74,6 +74,8 @@ class Sweep:
     scenes: list[Scene]
     configurations: list[Configuration]
     table: Table
+    lights: list[str] = field(default_factory=lambda: ["capture"])
+    """The lights runs are rendered and evaluated under (:data:`pgc.pipeline.relight.EVAL_LIGHTS`)."""
 
 
 def _fail(path: Path, key: str, message: str) -> PGCConfigError:
@@ -137,7 +139,21 @@ def load_sweep(path: str | Path, registry: Any = None) -> Sweep:
                 raise _fail(path, f"[scenes.{s.name}].capture", f"{s.capture} has no ground_truth/ folder, so "
                                                                 "'eval' has nothing to compare with; drop 'eval' "
                                                                 "from [sweep].steps")
-    return Sweep(path, str(head.get("name", path.stem)), list(steps), list(motions), scenes, configurations, table)
+    lights = _lights(path, head)
+    if len(lights) > 1 and "eval" in steps and "light" not in [*table.rows, *table.columns, *table.where]:
+        table.columns.append("light")  # a cell never averages over lights
+    return Sweep(path, str(head.get("name", path.stem)), list(steps), list(motions), scenes, configurations, table,
+                 lights)
+
+
+def _lights(path: Path, head: dict[str, Any]) -> list[str]:
+    """``[sweep].lights`` (default every light of :data:`pgc.pipeline.relight.EVAL_LIGHTS`), checked."""
+    from pgc.pipeline.relight import EVAL_LIGHTS, check_light_names
+
+    lights = head.get("lights", list(EVAL_LIGHTS))
+    if not isinstance(lights, list) or not all(isinstance(x, str) for x in lights):
+        raise _fail(path, "[sweep].lights", f"give a list of light names from {', '.join(EVAL_LIGHTS)}")
+    return check_light_names(lights, f"{path}: [sweep].lights")
 
 
 def _table(path: Path, data: dict[str, Any], key: str, required: bool = False) -> dict[str, Any]:
@@ -164,6 +180,7 @@ def _check_name(path: Path, key: str, name: Any) -> None:
 def _check_motions(path: Path, motions: list[str], root: Path) -> None:
     from pgc.errors import PGCDataError
     from pgc.io.motion import load_motion
+    from pgc.motion.amass import is_pose_npz, read_pose_arrays
     from pgc.motion.drive import SHIPPED_PREFIX, is_clip, load_clip, shipped_clip
     from pgc.synth.motions import MOTIONS
 
@@ -176,7 +193,9 @@ def _check_motions(path: Path, motions: list[str], root: Path) -> None:
                                                  f"shipped clip ({SHIPPED_PREFIX}NAME) nor a file (paths are "
                                                  "relative to the sweep file)")
         try:
-            if shipped or is_clip(m):
+            if not shipped and is_pose_npz(root / m):
+                read_pose_arrays(root / m)  # its skeleton comes from the configured body model, at run time
+            elif shipped or is_clip(root / m):
                 load_clip(shipped_clip(m) if shipped else root / m)
             else:
                 load_motion(root / m)

@@ -28,8 +28,9 @@ from pgc.sweep.spec import Configuration, Scene, Sweep
 DOWNSTREAM = {"roles": ("simulator", "filter", "metric"), "stages": ("animate", "render", "eval")}
 """Configuration tables that do not change the asset (left out of the asset folder's key). A table missing
 here only costs sharing, never correctness: the pipeline's stage keys still decide every reuse."""
-SEEDED = ("stages", "render", "gt")
-"""Cache folders copied from a donor folder (stage caches and ground-truth renders, all content-keyed)."""
+SEEDED = ("stages", "render", "gt", "relit")
+"""Cache folders copied from a donor folder (stage caches, ground-truth renders and the relit runs' own, all
+content-keyed)."""
 LOCK_COMMAND = "pgc sweep"
 
 
@@ -101,13 +102,13 @@ def plan(sweep: Sweep, out: Path) -> tuple[list[Task], list[Unit], dict[str, Any
                 units.append(Unit(scene, conf, None, str(capture), asset_task, None))
                 continue
             for motion_name, motion in zip(sweep.motions, motions):
-                rkey = content_key("run", akey, motion, conf.cfg.to_dict(), sweep.steps)
+                rkey = content_key("run", akey, motion, conf.cfg.to_dict(), sweep.steps, sweep.lights)
                 run = out / "runs" / f"{scene.name}-{Path(motion_name).stem.replace(':', '-')}-{rkey}"
                 rdonor = first_run.get((asset_task, motion))
                 rdonor = rdonor if rdonor and rdonor[0] != f"run-{rkey}" else None
                 run_task = add(f"run-{rkey}", make_run,
                                (str(asset), str(capture), motion, str(run), conf.data, conf.source, sweep.steps,
-                                str(rdonor[1]) if rdonor else None, str(out)),
+                                sweep.lights, str(rdonor[1]) if rdonor else None, str(out)),
                                [asset_task] + ([rdonor[0]] if rdonor else []))
                 first_run.setdefault((asset_task, motion), (run_task, run))
                 units.append(Unit(scene, conf, motion_name, str(capture), asset_task, run_task))
@@ -156,10 +157,12 @@ def make_capture(synth: dict[str, Any], folder: str, data: dict[str, Any], sourc
     from pgc.synth.render import scene_renderer
 
     start = time.perf_counter()
-    renderer = scene_renderer(_config(data, source))
+    cfg = _config(data, source)
+    renderer = scene_renderer(cfg)
     preset = get_preset(synth["preset"], framing=synth.get("framing"))
     generate(folder, preset, garment=synth.get("garment"), fabric=synth.get("fabric"), seed=synth["seed"],
-             looseness=synth.get("looseness"), detail=synth.get("detail"), fit=synth.get("fit"), renderer=renderer)
+             looseness=synth.get("looseness"), detail=synth.get("detail"), fit=synth.get("fit"), renderer=renderer,
+             body_model=cfg.create("body_model"))
     key = f"capture-{Path(folder).name.rsplit('-', 1)[1]}"
     return _finish(out, key, {"capture": folder, "seconds": time.perf_counter() - start})
 
@@ -190,29 +193,27 @@ def make_asset(capture: str, folder: str, data: dict[str, Any], source: str, don
 
 
 def make_run(asset: str, capture: str, motion: str, folder: str, data: dict[str, Any], source: str,
-             steps: list[str], donor: str | None, out: str, *deps: Any) -> dict[str, Any]:
-    """Animate one asset on one motion, then render and evaluate it as ``steps`` say."""
+             steps: list[str], lights: list[str], donor: str | None, out: str, *deps: Any) -> dict[str, Any]:
+    """Animate one asset on one motion, then render and evaluate it as ``steps`` say, under each of ``lights``
+    (:data:`pgc.pipeline.relight.EVAL_LIGHTS`; novel lights in the run's relit runs, their environment maps in
+    ``OUT/lights/``). ``metrics``: light -> variant -> metric."""
     from pgc.io.lock import FolderLock
     from pgc.pipeline.animate import animate
-    from pgc.pipeline.evaluate import VARIANTS, evaluate_run
-    from pgc.pipeline.render import render_run
+    from pgc.pipeline.evaluate import VARIANTS
+    from pgc.pipeline.relight import EVAL_LIGHTS, render_and_evaluate
 
     cfg = _config(data, source)
     seconds: dict[str, float] = {}
     seeded = seed_from(donor, Path(folder))
+    metrics: dict[str, dict[str, dict[str, float]]] = {}
     with FolderLock(folder, LOCK_COMMAND):
         start = time.perf_counter()
         animate(asset, motion, folder, cfg, capture)
         seconds["animate"] = time.perf_counter() - start
-        if "render" in steps:
-            start = time.perf_counter()
-            render_run(folder, cfg)
-            seconds["render"] = time.perf_counter() - start
-        metrics: dict[str, dict[str, float]] = {}
-        if "eval" in steps:
-            start = time.perf_counter()
-            ev = evaluate_run(folder, capture, cfg)
-            seconds["eval"] = time.perf_counter() - start
-            metrics = {v: {k: x for k, x in ev[v].items() if k != "per_frame"} for v in VARIANTS}
+        for name in lights if "render" in steps else ():
+            ev = render_and_evaluate(Path(folder), Path(capture) if "eval" in steps else None, cfg, EVAL_LIGHTS[name],
+                                     Path(out) / "lights", timings=seconds)
+            if ev is not None:
+                metrics[name] = {v: {k: x for k, x in ev[v].items() if k != "per_frame"} for v in VARIANTS}
     result = {"run": folder, "seeded": seeded, "seconds": seconds, "metrics": metrics}
     return _finish(out, f"run-{Path(folder).name.rsplit('-', 1)[1]}", result)

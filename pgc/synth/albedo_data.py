@@ -21,6 +21,7 @@ from pgc.albedo.dataset import AlbedoData
 from pgc.events import Reporter
 
 if TYPE_CHECKING:
+    from pgc.roles.body_model import BodyModel
     from pgc.roles.scene_renderer import SceneRenderer
 
 
@@ -66,25 +67,26 @@ def random_light(rng: np.random.Generator):
 
 def make_albedo_data(garment_kind: str, scenes: int, views: int, resolution: int, seed: int,
                      spp: int = 16, texture: int = 1024, sampler: str = "ldsampler", garment_edge: float = 0.02,
-                     reporter: Reporter | None = None, *, renderer: SceneRenderer) -> AlbedoData:
+                     reporter: Reporter | None = None, *, renderer: SceneRenderer, body_model: BodyModel
+                     ) -> AlbedoData:
     """Render ``scenes`` x ``views`` training images of ``garment_kind`` with ``renderer`` (the configuration's,
     see :func:`pgc.synth.render.scene_renderer`; deterministic in ``seed``).
 
     Defaults follow the ``default`` capture preset (texture, mesh resolution, low-discrepancy sampler);
     ``spp`` 16 of that sampler is about the noise of the capture (64 spp) doubled. Per scene: garment
-    looseness, sleeve and hem length, fabric (:func:`random_fabric`), light (:func:`random_light`) and
-    the dome of cameras are random.
+    body (a phenotype of ``body_model``, :func:`pgc.synth.body.draw_phenotype`), garment looseness, sleeve and
+    hem length, fabric (:func:`random_fabric`), light (:func:`random_light`) and the dome of cameras are random.
     """
     from pgc.synth import fabrics, garments, rig
-    from pgc.synth.body import make_body
+    from pgc.synth.body import draw_phenotype, make_body
     from pgc.synth.ground_truth import GroundTruth
     reporter = reporter or Reporter.silent()
-    body = make_body(edge_length=0.022)
-    height = body.shape.height
     out: dict[str, list[np.ndarray]] = {"images": [], "albedo": [], "mask": [], "garment": []}
     with reporter.stage(f"albedo_data_{garment_kind}", total=scenes * views) as st:
         for s in range(scenes):
             rng = np.random.default_rng([seed, s])
+            body = make_body(body_model, draw_phenotype(body_model, int(rng.integers(1 << 30))))
+            height = body.height
             fab = random_fabric(rng)
             cloth = garments.make_garment(body, garment_kind, looseness=float(rng.uniform(0.02, 0.05)),
                                           resolution=garment_edge, sleeve_length=float(rng.uniform(0.2, 0.9)),

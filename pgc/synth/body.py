@@ -1,155 +1,168 @@
-"""An SMPL-like parametric body made here: capsule primitives around the skeleton's bones, meshed as one
-smooth closed surface, with smooth linear-blend-skinning weights.
+"""The synthetic capture's body: a body of the ``body_model`` role (default: Anny) with a phenotype drawn per
+seed, in the capture pose (the rig's rest A-pose), as plain arrays that pose themselves by linear blend
+skinning and give a signed distance field for fitting garments.
 
-Construction: smooth union of tapered elliptic capsules (torso parts flattened front-to-back) -> marching
-cubes -> isotropic remeshing (roughly uniform triangles of ``edge_length``) -> skinning weights from the
-distance to each bone's surface, softened and diffused over the mesh, summing to 1.
+Conventions: those of :mod:`pgc.roles.body_model` (metres, +Y up, facing +Z, the person's left at +X, feet on
+y = 0; local rotations in world-aligned rest axes, identity = the capture pose).
 """
 
 from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pgc.errors import PGCDataError
-from pgc.synth import implicit
-from pgc.synth.implicit import Capsule
-from pgc.synth.skeleton import JOINTS, PARENTS, BodyShape, global_transforms, joint_index, rest_joints
+from pgc.roles.body_model import global_transforms
 from pgc.types import Mesh
 
-BLEND = 0.012
-"""Smooth-union blend radius as a fraction of the height."""
+if TYPE_CHECKING:
+    from pgc.motion.retarget import Rig
+    from pgc.roles.body_model import BodyModel
+
+PLAUSIBLE_PHENOTYPE: dict[str, tuple[float, float]] = {
+    "gender": (0.0, 1.0), "age": (0.6, 0.9), "muscle": (0.25, 0.75), "weight": (0.25, 0.75),
+    "height": (0.2, 0.6), "proportions": (0.2, 0.8),
+}
+"""Ranges each seed draws Anny's phenotypes from (uniformly): adults (25 to about 60 years) of 1.5-2.0 m, from
+slim to heavy (docs/synth.md has the measured heights). Other body models' parameters are drawn from the
+middle third of their range around the default."""
+
+SURFACE_SAMPLES = 40_000
+"""Points sampled on the body surface (about 7 mm apart on an adult) to find each point's nearest triangle."""
+CANDIDATES = 4
+"""Triangles (of the nearest samples or vertices) among which the field finds the closest point."""
+
+GARMENT_JOINTS: dict[str, str] = {
+    "pelvis": "Hips", "waist": "LowerBack", "chest": "Spine", "upper_chest": "Spine1", "neck": "Neck",
+    "l_shoulder": "LeftArm", "r_shoulder": "RightArm", "l_elbow": "LeftForeArm", "r_elbow": "RightForeArm",
+}
+"""Landmarks the garments and motions use -> joints of the ``cmu_mb`` rig (Anny's)."""
+
+
+def draw_phenotype(body_model: BodyModel, seed: int) -> dict[str, float]:
+    """The shape of ``seed``'s body: each of ``body_model``'s parameters drawn uniformly from
+    :data:`PLAUSIBLE_PHENOTYPE` (or the middle third of its range), rounded to 1e-4."""
+    rng = np.random.default_rng([seed, 0x80D7])
+    shape = {}
+    for name, spec in body_model.parameters.items():
+        third = (spec.high - spec.low) / 6
+        middle = (max(spec.low, spec.default - third), min(spec.high, spec.default + third))
+        lo, hi = PLAUSIBLE_PHENOTYPE.get(name, middle)
+        shape[name] = round(float(rng.uniform(lo, hi)), 4)
+    return body_model.check_shape(shape)
 
 
 @dataclass
-class BodyModel:
-    """A skinned body in the capture A-pose (the rest pose)."""
+class SynthBody:
+    """A skinned body in the capture pose (the rig's rest pose)."""
 
+    model: str
+    """The body model that made it (its class name)."""
+    phenotype: dict[str, float]
+    """Its shape parameters."""
     vertices: np.ndarray
-    """(V, 3) float64 rest (A-pose) positions, metres."""
+    """(V, 3) float64 rest positions, metres."""
     faces: np.ndarray
-    """(F, 3) int64, counter-clockwise seen from outside; the surface is closed and 2-manifold."""
+    """(F, 3) int64, counter-clockwise seen from outside."""
     joints: np.ndarray
     """(J, 3) rest joint positions."""
     parents: np.ndarray
-    """(J,) parent indices (-1 for the root)."""
+    """(J,) int64 parent indices (-1 for the root)."""
     weights: np.ndarray
-    """(V, J) skinning weights, non-negative, rows sum to 1."""
-    shape: BodyShape = field(default_factory=BodyShape)
-    parts: tuple[Capsule, ...] = ()
-    """The capsules the surface was built from (rest pose), each with its joint."""
-    joint_names: tuple[str, ...] = JOINTS
+    """(V, J) skinning weights, rows summing to 1."""
+    joint_names: tuple[str, ...]
+    _tree: object = field(default=None, repr=False, compare=False)
 
-    def pose(self, joint_rotations: np.ndarray) -> np.ndarray:
-        """Linear blend skinning: local joint rotations (J, 3, 3) or (T, J, 3, 3) -> vertices (V, 3) or
-        (T, V, 3). Identity rotations give the rest pose."""
-        transforms = global_transforms(self.joints, self.parents, joint_rotations)
+    @property
+    def height(self) -> float:
+        """Standing height (top of the head above the floor), metres."""
+        return float(self.vertices[:, 1].max())
+
+    def joint(self, name: str) -> np.ndarray:
+        """Rest position (3,) of joint ``name`` (a rig joint or a :data:`GARMENT_JOINTS` landmark)."""
+        rig_name = GARMENT_JOINTS.get(name, name)
+        if rig_name not in self.joint_names:
+            raise PGCDataError(f"the {self.model} body has no joint '{rig_name}'; the synthetic garments and motions "
+                               f"need the joints of Anny's cmu_mb rig ({', '.join(GARMENT_JOINTS.values())})")
+        return self.joints[self.joint_names.index(rig_name)]
+
+    def rig(self) -> Rig:
+        """The skeleton as a :class:`pgc.motion.retarget.Rig`."""
+        from pgc.motion.retarget import Rig
+
+        return Rig(tuple(self.joint_names), np.asarray(self.parents), np.asarray(self.joints, np.float64))
+
+    def pose(self, rotations: np.ndarray, translation: np.ndarray | None = None) -> np.ndarray:
+        """Linear blend skinning: local rotations (J, 3, 3) or (T, J, 3, 3) and a root translation (3,) or
+        (T, 3) -> vertices (V, 3) or (T, V, 3). Identity rotations give the capture pose."""
+        transforms = global_transforms(self.joints, self.parents, rotations, translation)
         blended = np.einsum("vj,...jab->...vab", self.weights, transforms[..., :3, :])
         return np.einsum("...vab,vb->...va", blended[..., :3], self.vertices) + blended[..., 3]
 
     def mesh(self, vertices: np.ndarray | None = None) -> Mesh:
-        """The body as a :class:`Mesh` (label 1 on every face), at rest or at the given vertices."""
+        """The body as a :class:`Mesh` named 'body' (label 1 on every face), at rest or at ``vertices``."""
         v = self.vertices if vertices is None else vertices
         return Mesh(v, self.faces, face_labels=np.ones(len(self.faces), np.int32), name="body")
 
-    def field(self, points: np.ndarray) -> np.ndarray:
-        """Approximate signed distance (metres, negative inside) of the rest-pose implicit body."""
-        return implicit.smooth_union([implicit.capsule_field(points, c) for c in self.parts],
-                                     BLEND * self.shape.height)
+    def field(self, points: np.ndarray, exact_within: float = 0.1) -> np.ndarray:
+        """Signed distance (metres, negative inside) of ``points`` (N, 3) to the rest surface: the distance to
+        the closest of the triangles of the :data:`CANDIDATES` nearest surface samples (within ``exact_within``
+        metres; farther, of the nearest vertices: an over-estimate by at most the gap to the truly nearest
+        triangle), signed by the interpolated vertex normal there. (A nearest-neighbour query far from a
+        surface visits most of its samples, so the bound keeps the field fast.)"""
+        from pgc.arrays import array_ops
+        from pgc.sim.collision import vertex_normals
+        from pgc.sim.xpbd import closest_contact
+
+        if self._tree is None:
+            self._tree = _surface_samples(self.vertices, self.faces)
+        points = np.asarray(points, np.float64)
+        (tree, face), (vertex_tree, vertex_face) = self._tree
+        d, i = tree.query(points, k=CANDIDATES, distance_upper_bound=exact_within)
+        far = ~np.isfinite(d[:, 0])
+        candidates = np.empty((len(points), CANDIDATES), np.int64)
+        candidates[~far] = face[np.minimum(i[~far], len(face) - 1)]  # misses repeat the nearest sample's face
+        candidates[~far] = np.where(np.isfinite(d[~far]), candidates[~far], candidates[~far][:, :1])
+        candidates[far] = vertex_face[vertex_tree.query(points[far], k=CANDIDATES)[1]]
+        contact = closest_contact(array_ops("numpy"), points, self.vertices,
+                                  vertex_normals(self.vertices, self.faces), self.faces[candidates])
+        return np.where(contact.signed < 0, -1.0, 1.0) * np.linalg.norm(points - contact.point, axis=1)
 
 
-def body_parts(shape: BodyShape) -> tuple[Capsule, ...]:
-    """The capsules of the body in the A-pose, each bound to the joint that moves it."""
-    j = rest_joints(shape)
-    h, g = shape.height, shape.girth
+def _surface_samples(vertices: np.ndarray, faces: np.ndarray):
+    """((KD-tree of area-uniform surface samples, the face of each), (KD-tree of the vertices, a face of each));
+    deterministic."""
+    from scipy.spatial import cKDTree
 
-    def at(name: str) -> np.ndarray:
-        return j[joint_index(name)]
-
-    def cap(a, b, ra, rb, joint, depth=1.0) -> Capsule:
-        return Capsule(tuple(map(float, a)), tuple(map(float, b)), ra, rb, joint_index(joint), depth)
-
-    sw = shape.shoulder_width / 2
-    parts = [
-        cap(at("pelvis") + [-0.045 * h, 0.005 * h, 0], at("pelvis") + [0.045 * h, 0.005 * h, 0],
-            0.07 * h * g, 0.07 * h * g, "pelvis", 0.78),
-        cap(at("pelvis"), at("spine2"), 0.074 * h * g, 0.074 * h * g, "spine1", 0.68),
-        cap(at("spine2"), at("spine3"), 0.078 * h * g, 0.083 * h * g, "spine2", 0.66),
-        cap([-(sw - 0.025 * h), 0.79 * h, -0.012], [sw - 0.025 * h, 0.79 * h, -0.012],
-            0.043 * h * g, 0.043 * h * g, "spine3", 0.95),
-        cap(at("neck") + [0, -0.03 * h, 0], at("head"), 0.033 * h, 0.031 * h, "neck"),
-        cap(at("head") + [0, 0.025 * h, 0.012 * h], at("head") + [0, 0.068 * h, 0.0], 0.05 * h, 0.053 * h,
-            "head", 0.95),
-    ]
-    for side in ("l", "r"):
-        parts += [
-            cap(at(f"{side}_shoulder"), at(f"{side}_elbow"), 0.031 * h * g, 0.024 * h * g, f"{side}_shoulder"),
-            cap(at(f"{side}_elbow"), at(f"{side}_wrist"), 0.023 * h * g, 0.017 * h * g, f"{side}_elbow"),
-            cap(at(f"{side}_wrist"), at(f"{side}_hand"), 0.017 * h, 0.015 * h, f"{side}_wrist", 0.7),
-            cap(at(f"{side}_hip"), at(f"{side}_knee"), 0.05 * h * g, 0.033 * h * g, f"{side}_hip"),
-            cap(at(f"{side}_knee"), at(f"{side}_ankle"), 0.031 * h * g, 0.021 * h * g, f"{side}_knee"),
-            cap(at(f"{side}_ankle"), at(f"{side}_foot"), 0.021 * h, 0.018 * h, f"{side}_ankle", 0.8),
-        ]
-    return tuple(parts)
+    tri = vertices[faces]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    rng = np.random.default_rng(0)
+    face = rng.choice(len(faces), SURFACE_SAMPLES, p=area / area.sum())
+    u, v = rng.random((2, SURFACE_SAMPLES))
+    flip = u + v > 1
+    u, v = np.where(flip, 1 - u, u), np.where(flip, 1 - v, v)
+    t = tri[face]
+    points = t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])
+    vertex_face = np.zeros(len(vertices), np.int64)
+    vertex_face[faces.ravel()] = np.repeat(np.arange(len(faces)), 3)
+    return (cKDTree(points), face), (cKDTree(vertices), vertex_face)
 
 
-def skinning_weights(vertices: np.ndarray, faces: np.ndarray, parts: tuple[Capsule, ...], num_joints: int,
-                     softness: float, smoothing_steps: int = 6) -> np.ndarray:
-    """(V, J) weights: softmax of minus the distance to each joint's part surfaces (temperature
-    ``softness`` metres), then Laplacian diffusion over the mesh; non-negative rows summing to 1."""
-    dist = np.full((len(vertices), num_joints), np.inf)
-    for c in parts:
-        dist[:, c.joint] = np.minimum(dist[:, c.joint], implicit.capsule_field(vertices, c))
-    logits = -(dist - dist.min(axis=1, keepdims=True)) / softness
-    w = np.exp(logits)
-    w /= w.sum(axis=1, keepdims=True)
-    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    e = np.unique(np.sort(e, axis=1), axis=0)
-    degree = np.bincount(e.ravel(), minlength=len(vertices)).astype(float)
-    for _ in range(smoothing_steps):
-        acc = np.zeros_like(w)
-        np.add.at(acc, e[:, 0], w[e[:, 1]])
-        np.add.at(acc, e[:, 1], w[e[:, 0]])
-        w = 0.5 * w + 0.5 * acc / degree[:, None]
-    w[w < 1e-4] = 0.0
-    return w / w.sum(axis=1, keepdims=True)
+def make_body(body_model: BodyModel, phenotype: dict[str, float] | None = None) -> SynthBody:
+    """The body of ``body_model`` with ``phenotype`` (default: the model's defaults) in the capture pose."""
+    b = _cached(body_model, tuple(sorted(body_model.check_shape(phenotype).items())))
+    return SynthBody(b.model, dict(b.phenotype), b.vertices.copy(), b.faces.copy(), b.joints.copy(), b.parents.copy(),
+                     b.weights.copy(), b.joint_names)
 
 
 @functools.lru_cache(maxsize=8)
-def _build(shape: BodyShape, edge_length: float) -> BodyModel:
-    parts = body_parts(shape)
-    joints = rest_joints(shape)
-    k = BLEND * shape.height
+def _cached(body_model: BodyModel, shape: tuple[tuple[str, float], ...]) -> SynthBody:
+    """The body of one shape (cached per model and shape; callers copy its arrays)."""
+    state = body_model.forward(dict(shape))
+    return SynthBody(type(body_model).__name__, dict(shape), state.vertices, np.asarray(state.faces, np.int64),
+                     state.joints, np.asarray(body_model.parents, np.int64), np.asarray(body_model.weights, np.float64),
+                     tuple(body_model.joint_names))
 
-    def field_fn(p: np.ndarray) -> np.ndarray:
-        return implicit.smooth_union([implicit.capsule_field(p, c) for c in parts], k)
-
-    margin = 0.15 * shape.height  # the top of the head is 0.12 h above the head joint
-    lo, hi = joints.min(axis=0) - margin, joints.max(axis=0) + margin
-    spacing = float(np.clip(edge_length / 2.0, 0.006, 0.016)) * shape.height / 1.7  # marching-cubes grid
-    v, f = implicit.mesh_field(field_fn, lo, hi, spacing)
-    v, f = implicit.remesh(v, f, edge_length)
-    v, f = implicit.orient_outward(v, f)
-    _check_closed(f)
-    weights = skinning_weights(v, f, parts, len(JOINTS), softness=0.012 * shape.height)
-    return BodyModel(v, f, joints, PARENTS.copy(), weights, shape, parts)
-
-
-def _check_closed(faces: np.ndarray) -> None:
-    e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
-    _, counts = np.unique(e, axis=0, return_counts=True)
-    if not np.all(counts == 2):
-        raise PGCDataError(f"synthetic body mesh is not closed 2-manifold ({np.sum(counts != 2)} bad edges); "
-                           "try another edge_length")
-
-
-def make_body(shape: BodyShape | None = None, edge_length: float = 0.022) -> BodyModel:
-    """The body for ``shape`` (default: average adult, 1.70 m) meshed with ~``edge_length`` metre edges
-    (0.022 gives about 4k vertices). Cached: returns a fresh copy of the cached arrays."""
-    if not 0.005 <= edge_length <= 0.08:
-        raise PGCDataError(f"make_body: edge_length {edge_length} m is outside [0.005, 0.08]")
-    b = _build(shape or BodyShape(), float(edge_length))
-    return BodyModel(b.vertices.copy(), b.faces.copy(), b.joints.copy(), b.parents.copy(), b.weights.copy(),
-                     b.shape, b.parts)

@@ -1,24 +1,22 @@
-"""Garments built around the A-pose body as simulation-quality open shells with UVs.
+"""Garments fitted to the synthetic body in the capture pose, as simulation-quality open shells with UVs.
 
-A garment is the zero level of the body's own capsules grown by the looseness (torso, upper arms, thighs;
-a flared frustum for a skirt), smooth-unioned, meshed, then cut exactly along the hem, the neckline and the
-sleeve ends (:func:`pgc.synth.implicit.clip_mesh`), remeshed to roughly uniform triangles and unwrapped with
-xatlas. Because every kept body part is grown by at least the looseness, the shell never intersects the
-body in the A-pose. The 'resting' fit offsets the body's own surface instead, by :data:`RESTING_TOP_GAP` over
-the shoulders and chest growing to the looseness at the waist, so the garment hangs from the shoulders.
+A garment is the zero level of the body's own signed distance field (:meth:`pgc.synth.body.SynthBody.field`)
+offset by the clearance, smooth-unioned with an elliptic frustum over the hips that the fabric hangs on (sized
+to enclose this body's hips and thighs; flared into a skirt for the dress), meshed, then cut exactly along the
+hem, the neckline and the sleeve ends (:func:`pgc.synth.implicit.clip_mesh`), remeshed to roughly uniform
+triangles and unwrapped with xatlas. Fit 'loose' offsets the body by the looseness everywhere (1.3 times on the
+sleeves); fit 'resting' by :data:`RESTING_TOP_GAP` over the shoulders and chest, growing to the looseness at
+the waist, so the garment hangs from the shoulders.
 """
 
 from __future__ import annotations
-
-import functools
 
 import numpy as np
 
 from pgc.errors import PGCDataError
 from pgc.synth import implicit
-from pgc.synth.body import BLEND, BodyModel, body_parts
+from pgc.synth.body import SynthBody
 from pgc.synth.implicit import Cone
-from pgc.synth.skeleton import JOINTS, BodyShape, joint_index, rest_joints
 from pgc.types import Mesh
 
 GARMENTS: tuple[str, ...] = ("tshirt", "dress")
@@ -26,81 +24,92 @@ FITS: tuple[str, ...] = ("loose", "resting")
 RESTING_TOP_GAP = 0.005
 """Resting fit: clearance (metres) over the shoulders and the upper chest, where the garment hangs; the
 simulation's cloth-body offset is 4 mm."""
+BLEND = 0.012
+"""Smooth-union blend radius of the body and the hip frustum, as a fraction of the height."""
+SAG_RADIUS = 0.05
+"""Resting fit: the clearance grows by the sag of a straight edge of the garment's resolution over a surface of
+this radius of curvature (metres, an upper arm's), so no edge cuts through the body: resolution^2 / (8 r)."""
+ARM_WORDS = ("Arm", "Hand", "Finger", "Thumb")
+"""Rig joints whose vertices are the arms (left out when sizing the hip frustum)."""
 
-_TORSO_JOINTS = ("pelvis", "spine1", "spine2", "spine3", "neck")
+
+def hip_cone(body: SynthBody, kind: str, hem: float) -> Cone:
+    """The frustum from the waist down that the garment hangs on: it encloses the body's vertices (arms left
+    out) between the hem and the waist; the dress's flares to at least 0.2 of the height at its bottom."""
+    h = body.height
+    y_top, y_bottom = float(body.joint("waist")[1]), 0.24 * h
+    dominant = np.asarray(body.joint_names)[np.argmax(body.weights, axis=1)]
+    trunk = ~np.array([any(w in name for w in ARM_WORDS) for name in dominant])
+    v = body.vertices[trunk & (body.vertices[:, 1] >= hem - 0.02) & (body.vertices[:, 1] <= y_top + 0.02)]
+    cz = 0.5 * (v[:, 2].min() + v[:, 2].max())
+    depth = float(np.clip((v[:, 2].max() - v[:, 2].min()) / max(2 * np.abs(v[:, 0]).max(), 1e-6), 0.6, 1.0))
+    rho = np.hypot(v[:, 0], (v[:, 2] - cz) / depth)
+    t = np.clip((y_top - v[:, 1]) / (y_top - y_bottom), 0.0, 1.0)
+    r_top = float(rho[t < 0.05].max(initial=0.08 * h))
+    deep = t >= 0.05
+    r_bottom = max(float(np.max(r_top + (rho[deep] - r_top) / t[deep], initial=r_top)),
+                   0.2 * h if kind == "dress" else 0.0)
+    return Cone((0.0, cz), y_top=y_top, y_bottom=y_bottom, r_top=r_top, r_bottom=r_bottom, depth=depth)
 
 
-def _garment_field(shape: BodyShape, joints: np.ndarray, kind: str, looseness: float):
-    h = shape.height
-    parts = [c for c in body_parts(shape) if JOINTS[c.joint] in _TORSO_JOINTS + ("l_shoulder", "r_shoulder",
-                                                                           "l_hip", "r_hip")]
-    grow = {JOINTS[c.joint]: looseness for c in parts}
-    grow.update({"l_shoulder": looseness * 1.3, "r_shoulder": looseness * 1.3})
-    cones: list[Cone] = []
-    if kind == "dress":
-        waist = joints[joint_index("spine1")]
-        cones.append(Cone((0.0, 0.0), y_top=float(waist[1]), y_bottom=0.24 * h, r_top=0.08 * h * shape.girth,
-                          r_bottom=0.2 * h * shape.girth, depth=0.82))
+def _garment_field(body: SynthBody, cone: Cone, looseness: float):
+    """Loose fit: the body grown by the looseness (1.3 times beyond the shoulders), united with the frustum."""
+    h, shoulder_x = body.height, float(body.joint("l_shoulder")[0])
+    exact = 1.3 * looseness + 0.07
 
     def field(p: np.ndarray) -> np.ndarray:
-        fields = [implicit.capsule_field(p, c, grow[JOINTS[c.joint]]) for c in parts]
-        fields += [implicit.cone_field(p, c, looseness) for c in cones]
-        return implicit.smooth_union(fields, BLEND * h * 2.0)
+        u = np.clip((np.abs(p[:, 0]) - shoulder_x) / (0.05 * h), 0.0, 1.0)
+        grow = looseness * (1 + 0.3 * u * u * (3 - 2 * u))
+        return implicit.smooth_union([body.field(p, exact) - grow, implicit.cone_field(p, cone, looseness)],
+                                     2 * BLEND * h)
 
     return field
 
 
-def _resting_field(shape: BodyShape, joints: np.ndarray, kind: str, looseness: float):
-    """Resting fit: the body's own smooth surface (without the legs) offset by a clearance that grows from
-    :data:`RESTING_TOP_GAP` at the chest (0.72 h and up) to ``looseness`` at the waist (0.6 h and down), plus
-    1 cm of ease under the arms and up to 8 mm more around the sleeves,
-    united with a frustum from the waist down that the fabric hangs on over the hips (a skirt for the dress)."""
-    h = shape.height
-    legs = ("hip", "knee", "ankle", "foot")
-    parts = [c for c in body_parts(shape) if not JOINTS[c.joint].endswith(legs)]  # it hangs over the hips
-    waist = joints[joint_index("spine1")]
-    r_bottom = (0.2 if kind == "dress" else 0.125) * h * shape.girth
-    cones = [Cone((0.0, 0.0), y_top=float(waist[1]), y_bottom=0.24 * h, r_top=0.08 * h * shape.girth,
-                  r_bottom=r_bottom, depth=0.82)]
-
-    shoulder_x = float(joints[joint_index("l_shoulder")][0])
-    armpits = [joints[joint_index(f"{side}_shoulder")] + np.array([sign * 0.018 * h, -0.07 * h, 0.0])
+def _resting_field(body: SynthBody, cone: Cone, looseness: float, resolution: float):
+    """Resting fit: the body's surface offset by a clearance that grows from :data:`RESTING_TOP_GAP` at the
+    chest (0.72 h and up) to ``looseness`` at the waist (0.6 h and down), plus 1 cm of ease under the arms, up
+    to 8 mm more around the sleeves and the sag of an edge of ``resolution`` (:data:`SAG_RADIUS`), united with
+    the frustum over the hips."""
+    h, shoulder_x = body.height, float(body.joint("l_shoulder")[0])
+    armpits = [body.joint(f"{side}_shoulder") + np.array([sign * 0.018 * h, -0.07 * h, 0.0])
                for side, sign in (("l", 1.0), ("r", -1.0))]
+    exact = looseness + 0.07
+    sag = resolution ** 2 / (8 * SAG_RADIUS)
 
     def field(p: np.ndarray) -> np.ndarray:
         t = np.clip((p[:, 1] - 0.6 * h) / (0.12 * h), 0.0, 1.0)
-        gap = looseness + (RESTING_TOP_GAP - looseness) * t * t * (3 - 2 * t)
+        gap = looseness + (RESTING_TOP_GAP - looseness) * t * t * (3 - 2 * t) + sag
         for a in armpits:  # ease under the arms, where the sleeve meets the side
             gap = gap + 0.01 * np.exp(-np.sum((p - a) ** 2, axis=1) / (2 * (0.025 * h) ** 2))
         u = np.clip((np.abs(p[:, 0]) - shoulder_x) / (0.05 * h), 0.0, 1.0)  # the sleeves flare a little
         gap = gap + 0.008 * u * u * (3 - 2 * u)
-        body = implicit.smooth_union([implicit.capsule_field(p, c) for c in parts], BLEND * h) - gap
-        return implicit.smooth_union([body] + [implicit.cone_field(p, c, looseness) for c in cones], BLEND * h)
+        return implicit.smooth_union([body.field(p, exact) - gap, implicit.cone_field(p, cone, looseness)], BLEND * h)
 
     return field
 
 
-def _cut_field(shape: BodyShape, j: np.ndarray, kind: str, vertices: np.ndarray, sleeve: float, hem: float
-               ) -> np.ndarray:
+def _cut_field(body: SynthBody, kind: str, vertices: np.ndarray, sleeve: float, hem: float) -> np.ndarray:
     """Per-vertex scalar, negative on the part of the closed surface that the garment keeps."""
-    h = shape.height
-    neck = j[joint_index("neck")]
+    h = body.height
+    neck = body.joint("neck")
     neck_r = (0.068 if kind == "tshirt" else 0.08) * h
     rho = np.hypot(vertices[:, 0] - neck[0], (vertices[:, 2] - neck[2] - 0.01 * h) / 0.85)
     cuts = [np.minimum(neck_r - rho, vertices[:, 1] - (neck[1] - 0.075 * h)),  # the neck opening
             hem - vertices[:, 1]]                                             # the hem
-    for side in ("l", "r"):
-        sh, el = j[joint_index(f"{side}_shoulder")], j[joint_index(f"{side}_elbow")]
+    for side, sign in (("l", 1.0), ("r", -1.0)):
+        sh, el = body.joint(f"{side}_shoulder"), body.joint(f"{side}_elbow")
         axis = (el - sh) / np.linalg.norm(el - sh)
         t = (vertices - sh) @ axis
         radial = np.linalg.norm((vertices - sh) - t[:, None] * axis, axis=1)
-        cuts.append(np.minimum(t - sleeve, 0.09 * h - radial))                # the sleeve ends
+        outside = sign * vertices[:, 0] - (abs(float(sh[0])) + 0.03)  # never the torso's side
+        cuts.append(np.minimum(np.minimum(t - sleeve, 0.09 * h - radial), outside))  # the sleeve ends
     return np.max(np.stack(cuts), axis=0)
 
 
-def make_garment(body: BodyModel, kind: str, looseness: float = 0.03, resolution: float = 0.02,
+def make_garment(body: SynthBody, kind: str, looseness: float = 0.03, resolution: float = 0.02,
                  sleeve_length: float = 0.5, length: float = 1.0, fit: str = "loose") -> Mesh:
-    """A garment shell around ``body`` in the A-pose.
+    """A garment shell fitted to ``body`` in the capture pose.
 
     kind: 'tshirt' (loose, short sleeves) or 'dress' (cap sleeves, flared skirt to the knees);
     looseness: clearance from the body in metres (>= 0.01; loose fit: sleeves get 1.3x; resting fit: at the waist);
@@ -108,10 +117,9 @@ def make_garment(body: BodyModel, kind: str, looseness: float = 0.03, resolution
     resting);
     sleeve_length: sleeve length as a fraction of the upper arm (tshirt; the dress uses a quarter of it);
     length: hem height scale (1 = hip for the tshirt, just above the knee for the dress; < 1 is longer);
-    fit: 'loose' (the body's torso, upper-arm and thigh capsules grown by the looseness and blended wide:
-    at 3 cm looseness the tshirt's vertices lie 2.4 cm off the body at least, 4.8 cm in the median) or
-    'resting' (the body's own surface offset by :data:`RESTING_TOP_GAP` over the shoulders and chest,
-    growing to ``looseness`` at the waist: the garment hangs from the shoulders).
+    fit: 'loose' (the body's surface offset by the looseness, the sleeves by 1.3 times) or 'resting' (offset
+    by :data:`RESTING_TOP_GAP` over the shoulders and chest, growing to ``looseness`` at the waist: the
+    garment hangs from the shoulders); docs/synth.md has the measured clearances.
     Returns a :class:`Mesh` with UVs (xatlas), face labels 2, name ``kind``.
     """
     if kind not in GARMENTS:
@@ -125,30 +133,30 @@ def make_garment(body: BodyModel, kind: str, looseness: float = 0.03, resolution
     if fit not in FITS:
         raise PGCDataError(f"unknown garment fit '{fit}' (pgc synth --fit, or a preset's fit); use one of: "
                           f"{', '.join(FITS)}")
-    v, f, uv, face_uv = _build(body.shape, kind, float(looseness), float(resolution), float(sleeve_length),
-                               float(length), fit)
-    return Mesh(v.copy(), f.copy(), uv.copy(), face_uv.copy(), np.full(len(f), 2, np.int32), name=kind)
+    v, f, uv, face_uv = _build(body, kind, float(looseness), float(resolution), float(sleeve_length), float(length),
+                               fit)
+    return Mesh(v, f, uv, face_uv, np.full(len(f), 2, np.int32), name=kind)
 
 
-@functools.lru_cache(maxsize=8)
-def _build(shape: BodyShape, kind: str, looseness: float, resolution: float, sleeve_length: float,
-           length: float, fit: str = "loose") -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Garment arrays for a body shape (the garment depends on the body's parts, not its mesh)."""
-    joints = rest_joints(shape)
-    h = shape.height
-    upper_arm = np.linalg.norm(joints[joint_index("l_elbow")] - joints[joint_index("l_shoulder")])
+def _build(body: SynthBody, kind: str, looseness: float, resolution: float, sleeve_length: float, length: float,
+           fit: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Garment arrays: vertices, faces, uv, face_uv."""
+    joints, h = body.joints, body.height
+    upper_arm = float(np.linalg.norm(body.joint("l_elbow") - body.joint("l_shoulder")))
     sleeve = upper_arm * (sleeve_length if kind == "tshirt" else sleeve_length * 0.25)
     hem = (0.47 if kind == "tshirt" else 0.28) * h * length
-    field = (_resting_field if fit == "resting" else _garment_field)(shape, joints, kind, looseness)
+    cone = hip_cone(body, kind, hem)
+    field = (_resting_field(body, cone, looseness, resolution) if fit == "resting"
+             else _garment_field(body, cone, looseness))
     lo = joints.min(axis=0) - 0.3 * h
-    hi = joints.max(axis=0) + 0.15 * h
+    hi = joints.max(axis=0) + 0.3 * h
     spacing = float(np.clip(resolution / 2.5, 0.006, 0.016))  # marching-cubes grid
     lo[1] = max(lo[1], hem - 0.1 * h) + 0.37 * spacing  # keep grid planes off the hem plane
-    hi[1] = 0.79 * h + 0.043 * h * shape.girth + looseness + 0.07  # above the shoulders, below the chin
+    hi[1] = float(body.joint("neck")[1]) + 0.06  # above the shoulders, below the chin
     v, f = implicit.mesh_field(lambda p: np.maximum(field(p), np.maximum(lo[1] + 0.02 - p[:, 1],
                                                                           p[:, 1] - hi[1] + 0.02)),
                                lo, hi, spacing)
-    v, f = implicit.clip_mesh(v, f, _cut_field(shape, joints, kind, v, sleeve, hem))
+    v, f = implicit.clip_mesh(v, f, _cut_field(body, kind, v, sleeve, hem))
     v, f = implicit.remesh(v, f, resolution, merge=0.2 if fit == "resting" else 0.01)  # resting: no slivers
     uv, face_uv = unwrap(v, f)
     return v, f, uv, face_uv

@@ -20,6 +20,7 @@ from pgc.events import Reporter
 from pgc.types import Capture, Mesh, View
 
 if TYPE_CHECKING:
+    from pgc.roles.body_model import BodyModel
     from pgc.roles.scene_renderer import SceneRenderer
 
 
@@ -30,8 +31,6 @@ class SynthPreset:
     views: int
     resolution: int
     """Image width and height, pixels."""
-    body_edge: float
-    """Body mesh edge length, metres."""
     garment_edge: float
     """Garment mesh edge length, metres."""
     texture: int
@@ -65,16 +64,16 @@ class SynthPreset:
 
 
 PRESETS: dict[str, SynthPreset] = {
-    "tiny": SynthPreset(views=6, resolution=64, body_edge=0.04, garment_edge=0.04, texture=256, spp=16,
+    "tiny": SynthPreset(views=6, resolution=64, garment_edge=0.04, texture=256, spp=16,
                         gt_samples=2, fibre_scale=0.3, envmap_height=16),
-    "default": SynthPreset(views=128, resolution=192, body_edge=0.022, garment_edge=0.02, texture=1024, spp=64,
+    "default": SynthPreset(views=128, resolution=192, garment_edge=0.02, texture=1024, spp=64,
                            gt_samples=4, fibre_scale=1.0, framing="garment", detail="seams", fit="resting",
                            looseness=0.012),
-    "cotton": SynthPreset(views=128, resolution=256, body_edge=0.022, garment_edge=0.02, texture=1024, spp=64,
+    "cotton": SynthPreset(views=128, resolution=256, garment_edge=0.02, texture=1024, spp=64,
                           gt_samples=4, fibre_scale=1.0),
-    "large": SynthPreset(views=64, resolution=1024, body_edge=0.015, garment_edge=0.012, texture=2048, spp=64,
+    "large": SynthPreset(views=64, resolution=1024, garment_edge=0.012, texture=2048, spp=64,
                          gt_samples=4, fibre_scale=2.0, envmap_height=256),
-    "knit": SynthPreset(views=32, resolution=320, body_edge=0.022, garment_edge=0.02, texture=1024, spp=64,
+    "knit": SynthPreset(views=32, resolution=320, garment_edge=0.02, texture=1024, spp=64,
                         gt_samples=4, fibre_scale=20.0, fabric="rib-knit-sheen", framing="garment", detail="relief",
                         fit="resting", looseness=0.012),
 }
@@ -118,19 +117,20 @@ def garment_gap(body: Mesh, garment: Mesh) -> dict[str, float]:
 def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garment: str | None = None,
              fabric: str | None = None, seed: int = 0, looseness: float | None = None,
              reporter: Reporter | None = None, detail: str | None = None, fit: str | None = None, *,
-             renderer: SceneRenderer) -> Capture:
+             renderer: SceneRenderer, body_model: BodyModel) -> Capture:
     """Generate a synthetic capture into ``out``, rendered by ``renderer`` (the configuration's, see
-    :func:`pgc.synth.render.scene_renderer`), and return it (as written).
+    :func:`pgc.synth.render.scene_renderer`), of a body of ``body_model`` (the configuration's ``[body_model]``)
+    with the phenotype :func:`pgc.synth.body.draw_phenotype` draws for ``seed``, and return it (as written).
 
     The same arguments give byte-identical files. ``preset``: a name of :data:`PRESETS` or a SynthPreset;
     ``garment``, ``fabric``, ``looseness``, ``detail`` and ``fit`` override the preset's.
     """
     from pgc.io.capture import write_capture
     from pgc.synth import fabrics, garments, rig
-    from pgc.synth.body import make_body
+    from pgc.synth.body import draw_phenotype, make_body
     from pgc.synth.contact_sheet import write_contact_sheet
     from pgc.synth.detail import get_detail, make_detail, root_offsets
-    from pgc.synth.ground_truth import GroundTruth, shape_dict, write_ground_truth
+    from pgc.synth.ground_truth import GroundTruth, body_record, write_ground_truth
     from pgc.synth.motions import MOTIONS, motion_rotations
     p = get_preset(preset) if isinstance(preset, str) else preset
     if p.sampler == "ldsampler":  # it takes powers of 4 only: round up rather than let Mitsuba warn
@@ -144,10 +144,11 @@ def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garm
     out = Path(out)
 
     with reporter.stage("synth_geometry") as st:
-        body = make_body(edge_length=p.body_edge)
+        body = make_body(body_model, draw_phenotype(body_model, seed))
         cloth = garments.make_garment(body, garment, looseness=looseness, resolution=p.garment_edge, fit=p.fit)
         gap = garment_gap(body.mesh(), cloth)
-        st.record(body_vertices=len(body.vertices), garment_vertices=len(cloth.vertices),
+        st.record(body_vertices=len(body.vertices), body_height_m=round(body.height, 3),
+                  garment_vertices=len(cloth.vertices),
                   gap_median_mm=round(1000 * gap["median"], 1))
     with reporter.stage("synth_fabric") as st:
         material, normal_map = fabrics.make_material(fab, cloth, p.texture, seed)
@@ -161,9 +162,9 @@ def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garm
                   detail_vertices=0 if surface is None else len(surface.offset))
 
     light = rig.capture_light()
-    center, radius = framing_sphere(p.framing, body.shape.height, cloth.vertices)
+    center, radius = framing_sphere(p.framing, body.height, cloth.vertices)
     cameras = rig.dome_cameras(p.views, p.resolution, p.resolution, center=center,
-                               distance=1.55 * body.shape.height, subject_radius=radius, seed=seed)
+                               distance=1.55 * body.height, subject_radius=radius, seed=seed)
     gt = GroundTruth(body.mesh(), cloth, material, light, normal_map, fibres, detail=surface)
     geometry = gt.geometry()
     scene, labels = renderer.build_scene(geometry, light)
@@ -181,12 +182,12 @@ def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garm
 
     metadata = {"generator": "pgc synth", "preset": asdict(p), "garment": garment, "fabric": fabric, "seed": seed,
                 "looseness": looseness, "ground_truth": "ground_truth/scene.json",
-                "body_shape": shape_dict(body.shape)}
+                "body": body_record(body)}
     capture = Capture(views, light=light, metadata=metadata)
     with reporter.stage("synth_write"):
         write_capture(out, capture)
         envmaps = {k: rig.relight_envmap(p.envmap_height, k, seed) for k in ("sky", "studio")}
-        motions = {name: motion_rotations(name).astype(np.float32) for name in MOTIONS}
+        motions = {name: motion_rotations(name, body).astype(np.float32) for name in MOTIONS}
         manifest = dict(metadata, light_radiance=light.radiance.tolist(), skin_albedo=list(gt.skin_albedo),
                         integrator={"type": "path", "max_depth": 8, "rfilter": "box", "sampler": p.sampler,
                                     "background_spp": min(p.spp, 16)},

@@ -15,14 +15,16 @@ Layout::
     detail.npz            near-field detail embedded in garment.obj: subdivision level, per fine vertex offset
     light.json            the capture light (constant RGB radiance)
     envmaps/<kind>.exr    environment maps for relighting ground truth
-    body_model.npz        skinned body: rest vertices, faces, joints, parents, weights, shape
-    motions.npz           local joint rotations (T, J, 3, 3) per motion at 30 fps (frame 0 = A-pose)
+    body_model.npz        skinned body in the capture pose: vertices, faces, joints, joint names, parents, weights,
+                          the body model's name and its phenotype (names, values)
+    motions.npz           local joint rotations (T, J, 3, 3) of the body's rig per motion at 30 fps (frame 0 =
+                          the capture pose)
 """
 
 from __future__ import annotations
 
 import os
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -35,9 +37,8 @@ from pgc.io.atomic import atomic_open, write_json
 from pgc.io.limits import read_json
 from pgc.io.mesh import read_mesh, write_mesh
 from pgc.roles.scene_renderer import SKIN_ALBEDO, SceneGeometry
-from pgc.synth.body import BodyModel
+from pgc.synth.body import SynthBody
 from pgc.synth.fabrics import appearance
-from pgc.synth.skeleton import BodyShape
 from pgc.types import Light, Material, Mesh
 
 GT_DIR = "ground_truth"
@@ -73,7 +74,7 @@ def _save_npz(path: Path, **arrays: np.ndarray) -> None:
         np.savez(f, **arrays)
 
 
-def write_ground_truth(root: str | os.PathLike, gt: GroundTruth, body: BodyModel, motions: dict[str, np.ndarray],
+def write_ground_truth(root: str | os.PathLike, gt: GroundTruth, body: SynthBody, motions: dict[str, np.ndarray],
                        envmaps: dict[str, np.ndarray], manifest: dict) -> Path:
     """Write the ground-truth folder under ``root`` and return its path."""
     out = Path(root) / GT_DIR
@@ -101,9 +102,7 @@ def write_ground_truth(root: str | os.PathLike, gt: GroundTruth, body: BodyModel
     write_json(out / "light.json", {"radiance": gt.light.radiance.tolist(), "rotation_deg": gt.light.rotation_deg})
     for kind, env in envmaps.items():
         imgio.write_exr(out / "envmaps" / f"{kind}.exr", env)
-    _save_npz(out / "body_model.npz", vertices=body.vertices, faces=body.faces, joints=body.joints,
-              parents=body.parents, weights=body.weights, shape=np.array([body.shape.height, body.shape.girth,
-                                                                          body.shape.shoulder_width]))
+    write_body_model(out, body)
     _save_npz(out / "motions.npz", **motions)
     write_json(out / "scene.json", dict(manifest, files=sorted(str(p.relative_to(out)) for p in out.rglob("*")
                                                                 if p.is_file() and p.name != "scene.json")))
@@ -160,17 +159,32 @@ def read_ground_truth(root: str | os.PathLike) -> GroundTruth:
                        normal_map, fibres, tuple(mat.get("skin_albedo", SKIN_ALBEDO)), manifest, detail)
 
 
-def read_body_model(root: str | os.PathLike) -> BodyModel:
+def write_body_model(folder: str | os.PathLike, body: SynthBody) -> Path:
+    """Write ``folder/body_model.npz`` (the skinned body, its model's name and phenotype) and return its path."""
+    path = Path(folder) / "body_model.npz"
+    _save_npz(path, vertices=body.vertices, faces=body.faces, joints=body.joints,
+              joint_names=np.array(body.joint_names), parents=body.parents, weights=body.weights, model=np.array(body.model),
+              phenotype_names=np.array(list(body.phenotype)),
+              phenotype_values=np.array(list(body.phenotype.values()), np.float64))
+    return path
+
+
+def read_body_model(root: str | os.PathLike) -> SynthBody:
     """The skinned body stored with a synthetic capture."""
     root = Path(root)
-    gt_dir = root if (root / "body_model.npz").is_file() else root / GT_DIR
-    z = np.load(gt_dir / "body_model.npz")
-    h, g, sw = (float(x) for x in z["shape"])
-    from pgc.synth.body import body_parts
+    path = (root if (root / "body_model.npz").is_file() else root / GT_DIR) / "body_model.npz"
+    if not path.is_file():
+        raise PGCDataError(f"{root}: no synthetic body here (expected {GT_DIR}/body_model.npz); make a capture "
+                           "with 'pgc synth OUT'")
+    with np.load(path) as z:
+        if "joint_names" not in z or "phenotype_names" not in z:
+            raise PGCDataError(f"{path}: no joint names or phenotype (written by an older 'pgc synth' for its own "
+                               "body); delete the capture folder and generate it again")
+        return SynthBody(str(z["model"]), dict(zip(z["phenotype_names"].tolist(), z["phenotype_values"].tolist())),
+                         z["vertices"], z["faces"], z["joints"], z["parents"], z["weights"],
+                         tuple(z["joint_names"].tolist()))
 
-    shape = BodyShape(h, g, sw)
-    return BodyModel(z["vertices"], z["faces"], z["joints"], z["parents"], z["weights"], shape, body_parts(shape))
 
-
-def shape_dict(shape: BodyShape) -> dict:
-    return asdict(shape)
+def body_record(body: SynthBody) -> dict:
+    """The body in a capture's metadata: model, phenotype and height (metres)."""
+    return {"model": body.model, "phenotype": dict(body.phenotype), "height_m": round(body.height, 4)}

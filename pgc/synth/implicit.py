@@ -1,5 +1,5 @@
-"""Implicit surfaces for the synthetic body and garments: tapered elliptic capsules, a smooth union, and
-meshing (marching cubes -> isotropic remeshing -> one closed, consistently oriented component).
+"""Implicit surfaces for the synthetic garments: an elliptic frustum, a smooth union, and meshing (marching cubes ->
+isotropic remeshing -> one closed, consistently oriented component), cutting and largest components.
 
 Fields are approximate signed distances in metres: negative inside. The smooth union is the log-sum-exp
 smooth minimum, which is order independent and never smaller than ``min - k log(n)``.
@@ -15,19 +15,6 @@ from pgc.errors import PGCDataError
 
 
 @dataclass(frozen=True)
-class Capsule:
-    """A tapered capsule around segment a -> b with radii ra -> rb; ``depth`` < 1 flattens it along z."""
-
-    a: tuple[float, float, float]
-    b: tuple[float, float, float]
-    ra: float
-    rb: float
-    joint: int
-    """Skeleton joint that carries this part (skinning)."""
-    depth: float = 1.0
-
-
-@dataclass(frozen=True)
 class Cone:
     """A vertical elliptic frustum (a skirt): radius r_top at y_top, r_bottom at y_bottom, depth scales z."""
 
@@ -38,22 +25,6 @@ class Cone:
     r_top: float
     r_bottom: float
     depth: float = 1.0
-
-
-def segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distance of ``points`` (N, 3) to segment a-b and the clamped segment parameter t in [0, 1]."""
-    ab = b - a
-    denom = float(ab @ ab)
-    t = np.zeros(len(points)) if denom == 0 else np.clip((points - a) @ ab / denom, 0.0, 1.0)
-    closest = a + t[:, None] * ab
-    return np.linalg.norm(points - closest, axis=1), t
-
-
-def capsule_field(points: np.ndarray, cap: Capsule, inflate: float = 0.0) -> np.ndarray:
-    """Approximate signed distance to ``cap`` grown by ``inflate`` metres."""
-    scale = np.array([1.0, 1.0, 1.0 / cap.depth])
-    d, t = segment_distance(points * scale, np.asarray(cap.a) * scale, np.asarray(cap.b) * scale)
-    return d - (cap.ra + t * (cap.rb - cap.ra)) - inflate
 
 
 def cone_field(points: np.ndarray, cone: Cone, inflate: float = 0.0) -> np.ndarray:

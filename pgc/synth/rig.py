@@ -57,7 +57,9 @@ def capture_light(radiance: tuple[float, float, float] = DEFAULT_RADIANCE) -> Li
 def relight_envmap(height: int = 64, kind: str = "sky", seed: int = 0) -> np.ndarray:
     """An environment map (height, 2 height, 3) float32 for relighting ground truth, in the convention of
     :class:`pgc.types.Light` (latitude-longitude, +Y up). kind 'sky': bright zenith, warm sun, dark ground;
-    'studio': two soft area lights on a grey background."""
+    'studio': two soft area lights on a grey background; 'low-key': one hard key light low at the side (20
+    degrees up, 70 degrees round from +Z, about 15 degrees across at 1/e) over a faint fill, a key-to-fill
+    irradiance ratio of about 20:1."""
     rng = np.random.default_rng(seed)
     theta = (np.arange(height) + 0.5) / height * np.pi  # from +Y
     phi = (np.arange(2 * height) + 0.5) / (2 * height) * 2 * np.pi
@@ -75,6 +77,11 @@ def relight_envmap(height: int = 64, kind: str = "sky", seed: int = 0) -> np.nda
             u = np.asarray(direction) / np.linalg.norm(direction)
             img = img + power * np.exp(-(1 - d @ u) / 0.02)[..., None]
         img = img * (1 + 0.02 * rng.standard_normal(img.shape[:2]))[..., None]
+    elif kind == "low-key":
+        img = np.full(d.shape, 0.03) * np.array([0.9, 0.95, 1.0])  # a faint cool fill
+        key = np.array([np.cos(np.deg2rad(20)) * np.sin(np.deg2rad(70)), np.sin(np.deg2rad(20)),
+                        np.cos(np.deg2rad(20)) * np.cos(np.deg2rad(70))])
+        img = img + np.array([40.0, 37.0, 32.0]) * np.exp(-(1 - d @ key) / 0.008)[..., None]
     else:
-        raise PGCDataError(f"unknown environment map kind '{kind}'; use 'sky' or 'studio'")
+        raise PGCDataError(f"unknown environment map kind '{kind}'; use 'sky', 'studio' or 'low-key'")
     return img.astype(np.float32)

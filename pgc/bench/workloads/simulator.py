@@ -1,4 +1,4 @@
-"""simulator: the synthetic t-shirt on the synthetic body, settled, blended into a motion and simulated.
+"""simulator: the synthetic t-shirt on the synthetic body (the default Anny body), settled, blended into a motion and simulated.
 
 Reference (speed base and truth): the ``reference`` implementation (default ``xpbd-jax``) with
 ``reference_options`` (default 4x the iterations: the converged answer of the same model). Errors:
@@ -21,13 +21,14 @@ from pgc.bench.workloads import Context
 ERROR_KEY = "shape_diff_mean"
 
 
-def scene(resolution: float, motion: str, seconds: float) -> tuple[Any, Any]:
-    """(t-shirt mesh with ``resolution`` m edges, body motion ``motion`` of ``seconds`` at 30 fps)."""
+def scene(body_model: Any, resolution: float, motion: str, seconds: float) -> tuple[Any, Any]:
+    """(t-shirt mesh with ``resolution`` m edges, motion ``motion`` of ``seconds`` at 30 fps) on the default body
+    of ``body_model``."""
     from pgc.synth.body import make_body
     from pgc.synth.garments import make_garment
     from pgc.synth.motions import make_motion
 
-    body = make_body(edge_length=max(resolution, 0.022))
+    body = make_body(body_model)
     return make_garment(body, "tshirt", resolution=resolution), make_motion(body, motion, seconds=seconds)
 
 
@@ -44,7 +45,8 @@ def errors(sim: Any, ref: np.ndarray) -> tuple[dict[str, float], dict[str, Any]]
 
 def bench(ctx: Context) -> list[dict[str, Any]]:
     resolution, motion_name = float(ctx.param("resolution", 0.04)), ctx.param("motion", "goalpost")
-    garment, motion = scene(resolution, motion_name, float(ctx.param("seconds", 0.1)))
+    body_model = ctx.registry.create("body_model", ctx.param("body_model", "anny"))
+    garment, motion = scene(body_model, resolution, motion_name, float(ctx.param("seconds", 0.1)))
     common = {"settle_frames": int(ctx.param("settle_frames", 2)), "blend_frames": int(ctx.param("blend_frames", 2))}
     ref_name = ctx.param("reference", "xpbd-jax")
     ref_options = common | ctx.param("reference_options", {"iterations": 80})
