@@ -17,7 +17,7 @@ from typing import Any
 
 from pgc.errors import PGCError
 
-COMMANDS = ("plugins", "config", "synth", "calibrate", "reconstruct", "animate", "render", "eval", "bench", "demo",
+COMMANDS = ("plugins", "config", "synth", "calibrate", "reconstruct", "body", "animate", "render", "eval", "bench", "demo",
             "export", "info", "report", "sweep")
 
 EPILOG = """\

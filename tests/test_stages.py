@@ -23,7 +23,8 @@ ARCHITECTURE_COLUMNS = ("stage", "config table", "folder", "settings", "progress
 
 def test_every_stage_is_declared_once_with_a_version_a_command_and_outputs():
     stages = declared()
-    assert list(stages) == ["mesh", "garment", "fit_splats", "base_color", "material", "animate", "render", "eval"]
+    assert list(stages) == ["mesh", "garment", "fit_splats", "base_color", "material", "body_fit", "animate", "render",
+                            "eval"]
     for name, stage in stages.items():
         assert stage.name == name and isinstance(stage, Stage)
         assert isinstance(stage.version, str) and stage.version.strip(), name

@@ -4,7 +4,9 @@ Stages (declared in :mod:`pgc.stages`; folder ``OUT/stages/<name>``, options ``[
 (reconstructor: labelled full-body mesh with UVs) -> ``garment`` (the garment sub-mesh with its own UV atlas) ->
 ``fit_splats`` (mesh-embedded Gaussians fitted on the full mesh, then only the garment's kept) -> ``base_color``
 (albedo estimator + colour correction + UV merge on the garment) -> ``material`` (BRDF parameters and the
-light's radiance, fitted by the PBR renderer under the capture's light) -> the asset directory ``OUT``.
+light's radiance, fitted by the PBR renderer under the capture's light) -> ``body_fit`` (the body model fitted to
+the capture's labels, only for a capture without a ground-truth body; copied to ``OUT/body_fit``) -> the asset
+directory ``OUT``.
 """
 
 from __future__ import annotations
@@ -24,9 +26,13 @@ from pgc.pipeline.cache import StageCache, file_key
 from pgc.pipeline.garment import body_occluder, garment_gaussians, with_occluder
 from pgc.pipeline.runner import StageContext, StageRunner, Step
 from pgc.pipeline.stage_io import load_gaussians, load_mesh, save_gaussians, save_mesh
-from pgc.stages import base_color, fit_splats, garment, material, mesh
+from pgc.stages import base_color, body_fit, fit_splats, garment, material, mesh
 from pgc.stages.garment import GarmentSettings
 from pgc.types import Capture, GarmentAsset, Light, Material, Mesh
+
+
+BODY_FIT_DIR = "body_fit"
+"""The asset's folder of the fitted body (body.json, body.ply), for a capture without a ground-truth body."""
 
 
 @dataclass(frozen=True)
@@ -133,11 +139,37 @@ def load_material(ctx: Context, folder: Path) -> tuple[Material, Light]:
             Light(np.asarray(light["radiance"]), envmap, float(light.get("rotation_deg", 0.0))))
 
 
+def compute_body_fit(ctx: Context, folder: Path) -> tuple[Any, dict[str, Any]]:
+    """The body model fitted to the capture (:func:`pgc.body.fit.fit_body`), written as body.json and body.ply."""
+    from pgc.body.fit import fit_body
+    from pgc.io.body_fit import write_body_fit
+    from pgc.io.keypoints import read_keypoints
+
+    capture = ctx.inputs.capture
+    keypoints = read_keypoints(capture.root, [v.camera.name for v in capture.views]) if capture.root else None
+    fit = fit_body(capture, ctx.implementation("body_model"), ctx.cfg.stage("body_fit"),
+                   ctx.cfg.roles["body_model"].name, keypoints, ctx.reporter, where=capture.root or "capture")
+    write_body_fit(folder, fit)
+    return fit, {k: v for k, v in fit.figures.items() if k != "view_names"}
+
+
+def load_body_fit(ctx: Context, folder: Path) -> Any:
+    from pgc.io.body_fit import read_body_fit
+
+    return read_body_fit(folder)
+
+
+def has_body_truth(capture_dir: str | Path) -> bool:
+    """Whether a capture brings its true body (a synthetic capture's ``ground_truth/body.obj``)."""
+    return (Path(capture_dir) / "ground_truth" / "body.obj").is_file()
+
+
 STAGES = ((mesh.STAGE, Step(compute_mesh, load_full_mesh)),
           (garment.STAGE, Step(compute_garment, load_garment)),
           (fit_splats.STAGE, Step(compute_splats, load_splats)),
           (base_color.STAGE, Step(compute_base_color, load_base_color)),
-          (material.STAGE, Step(compute_material, load_material)))
+          (material.STAGE, Step(compute_material, load_material)),
+          (body_fit.STAGE, Step(compute_body_fit, load_body_fit)))
 """The stages of ``pgc reconstruct``, in order, each with its code."""
 
 
@@ -154,6 +186,8 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
     runner = StageRunner(StageCache(out / "stages"), ctx, {"capture": file_key(capture_dir),
                                                            "garment_labels": capture.garment_label_ids})
     for stage, step in STAGES:
+        if stage is body_fit.STAGE and has_body_truth(capture_dir):
+            continue  # the capture's own body drives the motions
         runner.run(stage, step)
     full, (piece, sel) = ctx.values["mesh"], ctx.values["garment"]
     full_gaussians, heldout_views = ctx.values["fit_splats"]
@@ -167,6 +201,10 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
                          config=dict(cfg.to_dict(), source={"capture": str(Path(capture_dir).resolve())}),
                          figures=figures)
     write_asset(out, asset)
+    if "body_fit" in ctx.values:
+        from pgc.io.body_fit import write_body_fit
+
+        write_body_fit(out / BODY_FIT_DIR, ctx.values["body_fit"])
     write_timings(out, {"seconds": runner.seconds, "stages": stage_timings or {}})
     return asset
 

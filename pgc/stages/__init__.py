@@ -13,10 +13,10 @@ if TYPE_CHECKING:
 
 def declared() -> dict[str, Stage]:
     """Every stage by name, in pipeline order."""
-    from pgc.stages import animate, base_color, fit_splats, garment, material, mesh, render
+    from pgc.stages import animate, base_color, body_fit, fit_splats, garment, material, mesh, render
     from pgc.stages import eval as evaluate
 
-    return {s.STAGE.name: s.STAGE for s in (mesh, garment, fit_splats, base_color, material, animate, render, evaluate)}
+    return {s.STAGE.name: s.STAGE for s in (mesh, garment, fit_splats, base_color, material, body_fit, animate, render, evaluate)}
 
 
 def settings_models() -> dict[str, type[Options]]:

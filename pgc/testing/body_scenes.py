@@ -48,3 +48,73 @@ def write_tiny_smpl(path: str | Path, seed: int = 0) -> Path:
     path = Path(path)
     path.write_bytes(pickle.dumps(tiny_smpl_arrays(seed), protocol=2))
     return path
+
+
+FIT_GARMENTS = {"tight": 0.008, "loose": 0.035}
+"""Fixture garments of :func:`anny_capture`: clearance from the body, metres."""
+TORSO_JOINTS = ("Hips", "LowerBack", "Spine", "Spine1", "LeftShoulder", "RightShoulder", "LHipJoint", "RHipJoint")
+"""Joints whose skin the fixture's shirt covers."""
+
+
+def fixture_pose(body, angles_deg: dict[str, tuple[float, float, float]]) -> np.ndarray:
+    """(J, 3, 3) rotations of ``body``: identity except the named joints' XYZ Euler angles (degrees)."""
+    from scipy.spatial.transform import Rotation
+
+    rotations = np.broadcast_to(np.eye(3), (len(body.joint_names), 3, 3)).copy()
+    for name, xyz in angles_deg.items():
+        rotations[body.joint_names.index(name)] = Rotation.from_euler("xyz", xyz, degrees=True).as_matrix()
+    return rotations
+
+
+def fixture_garment(body, state, clearance: float):
+    """A shirt: the body faces skinned mostly to :data:`TORSO_JOINTS`, pushed ``clearance`` metres out along the
+    vertex normals (an open shell, label garment), as a :class:`pgc.types.Mesh` with a one-texel UV."""
+    from pgc.types import GARMENT_LABEL, Mesh
+
+    torso = np.isin(np.asarray(body.joint_names)[np.argmax(body.weights, axis=1)], TORSO_JOINTS)
+    faces = state.faces[torso[state.faces].all(axis=1)]
+    v = state.vertices
+    n = np.zeros_like(v)
+    fn = np.cross(v[state.faces[:, 1]] - v[state.faces[:, 0]], v[state.faces[:, 2]] - v[state.faces[:, 0]])
+    for k in range(3):
+        np.add.at(n, state.faces[:, k], fn)
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+    used, faces = np.unique(faces, return_inverse=True)
+    faces = faces.reshape(-1, 3)
+    return Mesh(v[used] + clearance * n[used], faces, np.zeros((1, 2), np.float32), np.zeros_like(faces),
+                np.full(len(faces), GARMENT_LABEL, np.int32), name="garment")
+
+
+def anny_capture(body, renderer, shape: dict, rotations: np.ndarray, translation=(0.0, 0.0, 0.0),
+                 garment: str | None = "tight", views: int = 8, size: int = 64):
+    """A capture of ``body`` (a body_model) in a known shape and pose, wearing a :func:`fixture_garment`, seen by
+    dome cameras: masks and segmentation from ``renderer``'s exact ground-truth layers (a flat grey image; the
+    body fit reads only masks and labels). Returns (capture, posed state, garment mesh or None)."""
+    from pgc.roles.scene_renderer import SceneGeometry
+    from pgc.testing.capture_scenes import dome_cameras
+    from pgc.types import Capture, Light, Material, Mesh, View
+
+    state = body.forward(shape, rotations, np.asarray(translation, float))
+    cloth = None if garment is None else fixture_garment(body, state, FIT_GARMENTS[garment])
+    empty = Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), name="garment")
+    material = Material("lambertian", {"base_color": [0.5, 0.5, 0.5]}, None)
+    geometry = SceneGeometry(state.vertices, state.faces, cloth if cloth is not None else empty, material)
+    scene, labels = renderer.build_scene(geometry, Light(np.ones(3)))
+    height = float(np.ptp(state.vertices[:, 1]))
+    out = []
+    for cam in dome_cameras(views, size, radius=3.2, target_y=0.5 * height + float(translation[1]),
+                            fov_y_deg=40.0):
+        layers = renderer.ground_truth_layers(scene, labels, geometry, cam, 4)
+        out.append(View(cam, np.full((size, size, 3), 0.5, np.float32), layers["mask"], layers["segmentation"]))
+    return Capture(out), state, cloth
+
+
+def random_body(body, seed: int) -> tuple[dict[str, float], np.ndarray]:
+    """An adult's shape (Anny's phenotypes; age between young and middle-aged) and a capture pose near the rest
+    A-pose (arms, elbows, legs, neck and spine turned by up to 15 degrees), drawn from ``seed``."""
+    rng = np.random.default_rng(seed)
+    shape = {"gender": rng.uniform(0.0, 1.0), "age": rng.uniform(0.55, 0.85), "muscle": rng.uniform(0.2, 0.8),
+             "weight": rng.uniform(0.2, 0.8), "height": rng.uniform(0.2, 0.8), "proportions": rng.uniform(0.2, 0.8)}
+    joints = ("LeftArm", "RightArm", "LeftForeArm", "RightForeArm", "LeftUpLeg", "RightUpLeg", "Neck", "Spine")
+    angles = {j: tuple(rng.uniform(-15.0, 15.0, 3) * (0.4 if j in ("Neck", "Spine") else 1.0)) for j in joints}
+    return {k: float(v) for k, v in shape.items()}, fixture_pose(body, angles)

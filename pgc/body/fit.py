@@ -1,0 +1,423 @@
+"""The body fit: a body model's shape, joint rotations and translation fitted to a capture's silhouettes,
+segmentation labels and optional 2D keypoints (torch, through the role's differentiable ``forward_torch``).
+
+Per view (every length in pixels of that view):
+- the body's silhouette near its edge is ``s = sigmoid(d / sigma)``, ``d`` the signed distance of a pixel
+  centre to the nearest projected contour edge (edges between a front- and a back-facing face; + inside the
+  rasterised body); at ``sigma`` about 1/4 px it matches a box-filtered edge, the capture mask's coverage;
+- pixels labelled body must be covered as much as the mask says: ``(s - mask)^2``; every other pixel may be
+  covered at most that much: ``relu(s - mask)^2`` (a garment may hide body, never the background);
+- every vertex projects inside the person's mask: the squared distance transform of the mask's outside;
+- keypoints (:mod:`pgc.io.keypoints`): the squared pixel distance of the projected joints, by confidence;
+- a prior on the squared joint angles keeps what no view constrains at rest.
+Three phases narrow ``sigma`` (:data:`PHASES`; the silhouette term is scaled by ``sigma`` so its gradient keeps its
+size) and the band of pixels around the edge; every joint that moves enough skin is posed (those that with their
+descendants skin less than :data:`MIN_SUBTREE_SKIN` of the vertices, hands' fingers and feet, stay at rest); the last phase stops when the loss no
+longer falls (``tolerance``). Docs: docs/body.md, "Body fit".
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Mapping
+
+import numpy as np
+
+from pgc.errors import PGCDataError
+from pgc.events import Reporter
+from pgc.roles.body_model import BodyModel
+from pgc.types import BODY_LABEL, Capture, Mesh
+
+if TYPE_CHECKING:
+    import torch
+
+    from pgc.stages.body_fit import BodyFitSettings
+
+PHASES = ((0.25, 1.5), (0.4, 0.6), (0.35, 0.3))
+"""(share of the iterations, silhouette edge width sigma in pixels) of the coarse-to-fine phases."""
+BAND_SIGMAS = 6.0
+"""Pixels within this many sigmas (at least BAND_MIN_PX) of the body's edge carry the silhouette loss."""
+BAND_MIN_PX = 2.0
+INSIDE_WEIGHT = 0.05
+"""Weight of the vertices-inside-the-mask term (px^2 per vertex) against the silhouette term."""
+KEYPOINT_WEIGHT = 0.01
+"""Weight of the keypoint term (px^2 per joint)."""
+MIN_SUBTREE_SKIN = 0.08
+"""Joints that, with their descendants, skin less than this fraction of the vertices (Anny's fingers, thumbs, feet
+and toes) are not posed: at a few pixels across, their silhouette does not fix their rotation."""
+TRANSLATION_SCALE = 0.1
+"""Metres per unit of the optimised translation (so one learning rate suits angles, shape and position)."""
+
+
+@dataclass(frozen=True)
+class Keypoints:
+    """2D keypoints of one view: joint names, pixel positions (N, 2) (centres at integer + 0.5), confidence (N,)."""
+
+    names: tuple[str, ...]
+    xy: np.ndarray
+    confidence: np.ndarray
+
+
+@dataclass(frozen=True)
+class BodyFit:
+    """A fitted body: which model, its shape, pose and mesh, and the fit's figures."""
+
+    model: str
+    """The body_model implementation's name (``anny``, ``smplx``)."""
+    options: dict[str, Any]
+    """Its options (Anny's topology, the SMPL file), needed to rebuild the body."""
+    shape: dict[str, float]
+    joint_names: tuple[str, ...]
+    rotations: np.ndarray
+    """(J, 3, 3) local joint rotations (the role's convention)."""
+    translation: np.ndarray
+    """(3,) metres."""
+    mesh: Mesh
+    """The posed body (label body on every face)."""
+    figures: dict[str, Any]
+
+
+@dataclass
+class _ViewData:
+    """What a view contributes, precomputed once (numpy, then torch where the loss reads it)."""
+
+    name: str
+    K: np.ndarray
+    R: np.ndarray
+    t: np.ndarray
+    width: int
+    height: int
+    mask: np.ndarray
+    """(H, W) person coverage in [0, 1]."""
+    body: np.ndarray
+    """(H, W) bool: pixels labelled body."""
+    outside: "torch.Tensor"
+    """(H + 2, W + 2) distance (px) to the mask, 0 inside and on the one-pixel frame outside the image."""
+    keypoints: Keypoints | None
+
+
+def check_capture_layers(capture: Capture, where: str) -> None:
+    """Refuse a capture the fit cannot use: every view needs segmentation labels (0 background, 1 body,
+    garments above); masks are optional (the labels' foreground stands in)."""
+    missing = [v.camera.name for v in capture.views if v.segmentation is None]
+    if missing:
+        raise PGCDataError(
+            f"{where}: the body fit needs segmentation labels for every view, and {len(missing)} of "
+            f"{len(capture.views)} views have none ({', '.join(missing[:4])}{', ...' if len(missing) > 4 else ''}); "
+            "add a grey 8-bit PNG per view with 0 background, 1 body (skin, hair, shoes), 2 garment, and name it in "
+            "transforms.json as each frame's 'pgc_segmentation_path' (e.g. segmentation/<view>.png, made with a "
+            "person/clothing segmenter); a 'mask_path' foreground mask per frame is optional")
+    if not any((v.segmentation == BODY_LABEL).any() for v in capture.views):
+        raise PGCDataError(f"{where}: no pixel of any view is labelled body ({BODY_LABEL}) in the segmentation; the "
+                           "fit needs the visible skin labelled (0 background, 1 body, 2 garment)")
+
+
+def _view_data(view, keypoints: Keypoints | None) -> _ViewData:
+    import torch
+    from scipy.ndimage import distance_transform_edt
+
+    seg = view.segmentation
+    mask = view.mask if view.mask is not None else (seg != 0).astype(np.float32)
+    person = (mask >= 0.5) | (seg != 0)
+    outside = np.pad(distance_transform_edt(~person), 1)  # 0 beyond the image: nothing is known there
+    cam = view.camera
+    return _ViewData(cam.name, cam.K, cam.R, cam.t, cam.width, cam.height, np.clip(mask, 0.0, 1.0),
+                     seg == BODY_LABEL, torch.as_tensor(outside, dtype=torch.float32), keypoints)
+
+
+def _rodrigues(w: "torch.Tensor") -> "torch.Tensor":
+    """Rotation matrices (..., 3, 3) of axis-angle vectors (..., 3) (smooth at zero)."""
+    import torch
+
+    theta2 = (w * w).sum(-1, keepdim=True)[..., None]
+    theta = torch.sqrt(theta2 + 1e-12)
+    x, y, z = w.unbind(-1)
+    zero = torch.zeros_like(x)
+    k = torch.stack([zero, -z, y, z, zero, -x, -y, x, zero], -1).reshape(*w.shape[:-1], 3, 3)
+    a = torch.sin(theta) / theta
+    b = (1.0 - torch.cos(theta)) / (theta2 + 1e-12)
+    b = torch.where(theta2 < 1e-8, 0.5 - theta2 / 24.0, b)
+    return torch.eye(3, dtype=w.dtype) + a * k + b * (k @ k)
+
+
+def _edge_faces(faces: np.ndarray) -> np.ndarray:
+    """(E, 4): vertex a, vertex b, and the two faces of each edge of a closed mesh (edges with one face
+    repeat it)."""
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    f = np.tile(np.arange(len(faces)), 3)
+    key = np.sort(e, axis=1)
+    order = np.lexsort((key[:, 1], key[:, 0]))
+    key, f = key[order], f[order]
+    first = np.r_[True, np.any(key[1:] != key[:-1], axis=1)]
+    start = np.nonzero(first)[0]
+    count = np.diff(np.r_[start, len(key)])
+    other = np.where(count > 1, start + 1, start)
+    return np.column_stack([key[start], f[start], f[other]])
+
+
+def posed_joints(body: BodyModel) -> np.ndarray:
+    """(J,) bool: the joints the fit poses (:data:`MIN_SUBTREE_SKIN`)."""
+    subtree = np.asarray(body.weights).sum(axis=0) / len(body.weights)
+    parents = np.asarray(body.parents)
+    for j in range(len(parents) - 1, -1, -1):  # parents come before their children
+        if parents[j] >= 0:
+            subtree[parents[j]] += subtree[j]
+    return subtree >= MIN_SUBTREE_SKIN
+
+
+def _translation_init(views: list[_ViewData]) -> np.ndarray:
+    """The point nearest the rays through the centroids of the views' masks (least squares), metres."""
+    A = np.zeros((3, 3))
+    b = np.zeros(3)
+    for v in views:
+        ys, xs = np.nonzero(v.mask >= 0.5)
+        if len(xs) == 0:
+            continue
+        pix = np.array([xs.mean() + 0.5, ys.mean() + 0.5, 1.0])
+        d = v.R.T @ np.linalg.solve(v.K, pix)
+        d /= np.linalg.norm(d)
+        c = -v.R.T @ v.t
+        P = np.eye(3) - np.outer(d, d)
+        A += P
+        b += P @ c
+    if np.linalg.matrix_rank(A) < 3:
+        raise PGCDataError("body fit: the masks' centroids do not locate the person in 3D (one view, or parallel "
+                           "rays); use views from several directions")
+    return np.linalg.solve(A, b)
+
+
+class _Silhouette:
+    """Per view and step: the body's soft silhouette near its edge and the losses on it."""
+
+    def __init__(self, faces: np.ndarray) -> None:
+        self.faces = faces
+        self.edges = _edge_faces(faces)
+
+    def loss(self, v: _ViewData, uv: "torch.Tensor", depth: "torch.Tensor", sigma: float) -> tuple["torch.Tensor",
+                                                                                                  float]:
+        """The silhouette loss (mean over the band's pixels, px^2-free: coverage squared) and the IoU of the
+        hard silhouette with the mask."""
+        import torch
+        from scipy.ndimage import distance_transform_edt
+        from scipy.spatial import cKDTree
+
+        from pgc.geometry.raster import covered_pixels
+
+        p = uv.detach().double().numpy()
+        z = depth.detach().double().numpy()
+        h, w = v.height, v.width
+        front_faces = np.all(z[self.faces] > 1e-3, axis=1)
+        covered = np.zeros(h * w, bool)
+        for _, pix, _ in covered_pixels(p[self.faces[front_faces]], w, h):
+            covered[pix] = True
+        covered = covered.reshape(h, w)
+        target = v.mask >= 0.5
+        union = (covered | target).sum()
+        iou = float((covered & target).sum() / union) if union else 1.0
+        # contour edges: one adjacent face turned to the camera, the other away
+        tri = p[self.faces]
+        area = (tri[:, 1, 0] - tri[:, 0, 0]) * (tri[:, 2, 1] - tri[:, 0, 1]) \
+            - (tri[:, 2, 0] - tri[:, 0, 0]) * (tri[:, 1, 1] - tri[:, 0, 1])
+        facing = area > 0
+        contour = self.edges[facing[self.edges[:, 2]] != facing[self.edges[:, 3]]][:, :2]
+        band_px = max(BAND_MIN_PX, BAND_SIGMAS * sigma)
+        dist_in = distance_transform_edt(covered)
+        dist_out = distance_transform_edt(~covered)
+        band = np.where(covered, dist_in, dist_out) <= band_px + 0.5
+        ys, xs = np.nonzero(band)
+        if len(contour) == 0 or len(xs) == 0:
+            return uv.sum() * 0.0, iou
+        # nearest contour edge of each band pixel: through points sampled along the projected edges
+        a, b = p[contour[:, 0]], p[contour[:, 1]]
+        steps = np.maximum(np.ceil(np.linalg.norm(b - a, axis=1) * 2).astype(int), 1) + 1
+        edge_of = np.repeat(np.arange(len(contour)), steps)
+        frac = (np.arange(len(edge_of)) - np.repeat(np.cumsum(steps) - steps, steps)) / np.repeat(steps - 1, steps)
+        samples = a[edge_of] + frac[:, None] * (b - a)[edge_of]
+        centres = np.column_stack([xs + 0.5, ys + 0.5])
+        nearest = edge_of[cKDTree(samples).query(centres)[1]]
+        ea, eb = uv[torch.as_tensor(contour[nearest, 0])], uv[torch.as_tensor(contour[nearest, 1])]
+        q = torch.as_tensor(centres, dtype=uv.dtype)
+        ab = eb - ea
+        s = ((q - ea) * ab).sum(-1) / (ab * ab).sum(-1).clamp_min(1e-9)
+        closest = ea + s.clamp(0.0, 1.0)[:, None] * ab
+        dist = torch.sqrt(((q - closest) ** 2).sum(-1) + 1e-9)
+        signed = torch.where(torch.as_tensor(covered[ys, xs]), dist, -dist)
+        soft = torch.sigmoid(signed / sigma)
+        m = torch.as_tensor(v.mask[ys, xs], dtype=uv.dtype)
+        diff = soft - m
+        is_body = torch.as_tensor(v.body[ys, xs])
+        per_pixel = torch.where(is_body, diff * diff, torch.relu(diff) ** 2)
+        return per_pixel.mean(), iou
+
+
+def _sample_outside(outside: "torch.Tensor", uv: "torch.Tensor") -> "torch.Tensor":
+    """Bilinear samples (px) of a padded distance image at pixel positions ``uv`` (N, 2); 0 beyond the frame."""
+    import torch
+
+    H, W = outside.shape
+    x = (uv[:, 0] - 0.5 + 1.0).clamp(0.0, W - 1.001)
+    y = (uv[:, 1] - 0.5 + 1.0).clamp(0.0, H - 1.001)
+    x0, y0 = x.floor().long(), y.floor().long()
+    fx, fy = x - x0, y - y0
+    g = outside.to(uv.dtype)
+    return ((1 - fx) * (1 - fy) * g[y0, x0] + fx * (1 - fy) * g[y0, x0 + 1]
+            + (1 - fx) * fy * g[y0 + 1, x0] + fx * fy * g[y0 + 1, x0 + 1])
+
+
+def fit_body(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_name: str,
+             keypoints: Mapping[str, Keypoints] | None = None, reporter: Reporter | None = None,
+             where: str = "capture") -> BodyFit:
+    """Fit ``body``'s shape and pose to ``capture`` (silhouettes and labels; ``keypoints`` by view name, used when
+    ``settings.keypoints``). ``where`` names the capture in errors."""
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # the fit's tensors are small: more threads only wait on each other
+    try:
+        return _fit(capture, body, settings, model_name, keypoints, reporter, where)
+    finally:
+        torch.set_num_threads(threads)
+
+
+def _fit(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_name: str,
+         keypoints: Mapping[str, Keypoints] | None, reporter: Reporter | None, where: str) -> BodyFit:
+    import torch
+
+    from pgc.sampling import spread
+
+    check_capture_layers(capture, where)
+    reporter = reporter or Reporter.silent()
+    start = time.perf_counter()
+    chosen = spread(list(range(len(capture.views))), settings.views)
+    use_kp = bool(settings.keypoints and keypoints)
+    views = [_view_data(capture.views[i], (keypoints or {}).get(capture.views[i].camera.name) if use_kp else None)
+             for i in chosen]
+    names = body.joint_names
+    kp_index = {n: i for i, n in enumerate(names)}
+    for v in views:
+        if v.keypoints is not None:
+            unknown = sorted(set(v.keypoints.names) - set(kp_index))
+            if unknown:
+                raise PGCDataError(f"{where}: keypoints of view '{v.name}' name joints the body model "
+                                   f"'{model_name}' lacks: {unknown[:5]}; its joints: {', '.join(names)}")
+    dtype = torch.float32
+    params = body.parameters
+    low = torch.tensor([params[k].low for k in params], dtype=dtype)
+    high = torch.tensor([params[k].high for k in params], dtype=dtype)
+    default = torch.tensor([params[k].default for k in params], dtype=dtype)
+    frac = ((default - low) / (high - low)).clamp(0.02, 0.98)
+    shape_logit = torch.log(frac / (1 - frac)).clone().requires_grad_(True)
+    angles = torch.zeros(len(names), 3, dtype=dtype, requires_grad=True)
+    posed = torch.as_tensor(posed_joints(body))
+    with torch.no_grad():
+        rest = body.forward_torch({k: default[i:i + 1] for i, k in enumerate(params)},
+                                  torch.eye(3, dtype=dtype).expand(1, len(names), 3, 3), torch.zeros(1, 3, dtype=dtype))
+    rest_v = rest.vertices[0].double().numpy()
+    centre = 0.5 * (rest_v.min(0) + rest_v.max(0))
+    offset = torch.tensor((_translation_init(views) - centre) / TRANSLATION_SCALE, dtype=dtype, requires_grad=True)
+    silhouette = _Silhouette(np.asarray(body.faces))
+    cams = [(torch.tensor(v.K, dtype=dtype), torch.tensor(v.R, dtype=dtype), torch.tensor(v.t, dtype=dtype))
+            for v in views]
+    opt = torch.optim.Adam([shape_logit, angles, offset], lr=settings.learning_rate)
+
+    def shape_of(logit: torch.Tensor) -> dict[str, torch.Tensor]:
+        value = low + (high - low) * torch.sigmoid(logit)
+        return {k: value[i:i + 1] for i, k in enumerate(params)}
+
+    def pose() -> "Any":
+        moving = torch.where(posed[:, None], angles, 0.0)
+        return body.forward_torch(shape_of(shape_logit), _rodrigues(moving)[None], TRANSLATION_SCALE * offset[None])
+
+    history: list[float] = []
+    steps = 0
+    iou = []
+    with reporter.stage("body_fit", total=settings.iterations, views=len(views), keypoints=use_kp) as st:
+        for phase, (share, sigma) in enumerate(PHASES):
+            n = max(1, int(round(share * settings.iterations)))
+            last = phase == len(PHASES) - 1
+            for i in range(n):
+                if last:
+                    for g in opt.param_groups:
+                        g["lr"] = settings.learning_rate * (0.1 ** (i / n))
+                opt.zero_grad()
+                out = pose()
+                verts, joints = out.vertices[0], out.joints[0]
+                loss_sil = torch.zeros((), dtype=dtype)
+                loss_in = torch.zeros((), dtype=dtype)
+                loss_kp = torch.zeros((), dtype=dtype)
+                iou = []
+                for v, (K, R, t) in zip(views, cams):
+                    pc = verts @ R.T + t
+                    uv = (pc @ K.T)[:, :2] / pc[:, 2:3].clamp_min(1e-3)
+                    l, j = silhouette.loss(v, uv, pc[:, 2], sigma)
+                    loss_sil = loss_sil + sigma * l
+                    iou.append(j)
+                    loss_in = loss_in + (_sample_outside(v.outside, uv) ** 2).mean()
+                    if v.keypoints is not None:
+                        idx = torch.as_tensor([kp_index[n] for n in v.keypoints.names])
+                        jc = joints[idx] @ R.T + t
+                        juv = (jc @ K.T)[:, :2] / jc[:, 2:3].clamp_min(1e-3)
+                        conf = torch.as_tensor(v.keypoints.confidence, dtype=dtype)
+                        err = ((juv - torch.as_tensor(v.keypoints.xy, dtype=dtype)) ** 2).sum(-1)
+                        loss_kp = loss_kp + (conf * err).sum() / conf.sum().clamp_min(1e-6)
+                loss = (loss_sil + INSIDE_WEIGHT * loss_in + KEYPOINT_WEIGHT * loss_kp) / len(views) \
+                    + settings.pose_prior * 1e-3 * (angles ** 2).sum()
+                loss.backward()
+                opt.step()
+                steps += 1
+                history.append(float(loss.detach()))
+                st.progress(steps, loss=history[-1], silhouette_iou=float(np.mean(iou)))
+                if last and i >= 20 and history[-21] - history[-1] < settings.tolerance * abs(history[-21]):
+                    break
+    shape = {k: float(x) for k, x in zip(params, (low + (high - low) * torch.sigmoid(shape_logit)).tolist())}
+    rotations = _rodrigues(torch.where(posed[:, None], angles.detach(), 0.0).double()).numpy()
+    translation = (TRANSLATION_SCALE * offset.detach().double()).numpy()
+    mesh = body.mesh(shape, rotations, translation)
+    figures = {"views": len(views), "view_names": [v.name for v in views], "iterations": steps,
+               "keypoints": use_kp, "loss": history[-1], "silhouette_iou": float(np.mean(iou)),
+               "seconds": round(time.perf_counter() - start, 3)}
+    return BodyFit(model_name, dict(body.options.model_dump()), shape, tuple(names), rotations, translation, mesh,
+                   figures)
+
+
+UNDER_GARMENT_M = 0.1
+"""A true body vertex is under the garment when the nearest garment vertex lies within this distance (metres)
+and within 60 degrees of its outward normal."""
+
+
+def vertex_error(vertices: np.ndarray, truth: Mesh, garment: Mesh | None = None) -> dict[str, Any]:
+    """Distance of fitted body ``vertices`` (V, 3) to the true body, metres: per vertex when both share the
+    topology (``kind`` 'per_vertex'), else of each fitted vertex to the true surface ('to_surface'); mean and
+    max over all vertices, and separately over those under ``garment`` (:data:`UNDER_GARMENT_M`) and the rest."""
+    from scipy.spatial import cKDTree
+
+    vertices = np.asarray(vertices, np.float64)
+    same = len(vertices) == len(truth.vertices)
+    if same:
+        dist = np.linalg.norm(vertices - truth.vertices, axis=1)
+        owner = np.arange(len(vertices))
+    else:
+        from pgc.sim.collision import signed_distance
+
+        dist = np.abs(signed_distance(vertices, truth.vertices, truth.faces))
+        owner = cKDTree(truth.vertices).query(vertices)[1]
+    under = np.zeros(len(vertices), bool)
+    if garment is not None and len(garment.vertices):
+        v, f = np.asarray(truth.vertices, np.float64), np.asarray(truth.faces)
+        normals = np.zeros_like(v)
+        fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+        for k in range(3):
+            np.add.at(normals, f[:, k], fn)
+        normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+        gap, nearest = cKDTree(garment.vertices).query(v)
+        direction = (garment.vertices[nearest] - v) / np.maximum(gap, 1e-12)[:, None]
+        covered = (gap < UNDER_GARMENT_M) & (np.einsum("ij,ij->i", direction, normals) > 0.5)
+        under = covered[owner]
+
+    def stats(d: np.ndarray) -> dict[str, float | int]:
+        return {"mean": float(d.mean()) if len(d) else None, "max": float(d.max()) if len(d) else None,
+                "vertices": int(len(d))}
+
+    return {"kind": "per_vertex" if same else "to_surface", **stats(dist), "under_garment": stats(dist[under]),
+            "exposed": stats(dist[~under])}

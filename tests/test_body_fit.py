@@ -1,0 +1,259 @@
+"""The body fit (``pgc body fit``, stage ``body_fit``): its pieces against analytic cases, its files' round trips and
+bad input, and (slow) the fit of an Anny body of known shape and pose rendered by the scene renderer."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from pgc.errors import PGCDataError
+from pgc.registry import Registry
+from pgc.types import BODY_LABEL, GARMENT_LABEL, Mesh
+
+REGISTRY = Registry.discover()
+needs_anny = pytest.mark.skipif(not REGISTRY.get("body_model", "anny").available,
+                                reason="the 'anny' body model needs the anny package (pip install 'pgc[body]')")
+SHAPE = {"gender": 0.2, "age": 0.6, "muscle": 0.7, "weight": 0.35, "height": 0.65, "proportions": 0.4}
+POSE = {"LeftArm": (0, 0, 15), "RightForeArm": (-20, 0, 0), "Neck": (10, 5, 0), "LeftUpLeg": (-8, 0, 0)}
+
+
+def test_rodrigues_matches_scipy_and_its_gradient_matches_finite_differences():
+    import torch
+    from scipy.spatial.transform import Rotation
+
+    from pgc.body.fit import _rodrigues
+
+    w = np.array([[0.3, -0.2, 0.9], [1e-9, 0.0, 0.0], [0.0, 2.5, 0.1]])
+    assert np.allclose(_rodrigues(torch.tensor(w)).numpy(), Rotation.from_rotvec(w).as_matrix(), atol=1e-12)
+    x = torch.tensor(w[[0, 2]], requires_grad=True)
+    assert torch.autograd.gradcheck(lambda a: _rodrigues(a), (x,), eps=1e-6, atol=1e-6)
+
+
+def test_edge_faces_of_a_tetrahedron():
+    from pgc.body.fit import _edge_faces
+
+    faces = np.array([[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]])
+    e = _edge_faces(faces)
+    assert len(e) == 6 and len({tuple(r) for r in e[:, :2]}) == 6
+    for a, b, f, g in e:
+        assert f != g and {a, b} <= set(faces[f]) and {a, b} <= set(faces[g])
+
+
+def test_translation_init_finds_the_point_the_masks_are_centred_on():
+    from pgc.body.fit import _translation_init, _view_data
+    from pgc.testing.capture_scenes import dome_cameras
+    from pgc.types import View
+
+    point = np.array([0.2, 0.8, -0.1])
+    views = []
+    for cam in dome_cameras(5, 64):
+        (u, v), = cam.project(point[None])[0]
+        ys, xs = np.mgrid[0:64, 0:64]
+        seg = ((np.abs(xs + 0.5 - u) <= 4.0) & (np.abs(ys + 0.5 - v) <= 4.0)).astype(np.uint8)
+        views.append(_view_data(View(cam, np.zeros((64, 64, 3)), segmentation=seg), None))
+    assert np.allclose(_translation_init(views), point, atol=0.02)
+
+
+def test_vertex_error_per_vertex_and_under_the_garment():
+    from pgc.body.fit import vertex_error
+
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    truth = Mesh(v, np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]))
+    shift = np.array([0.0, 0.0, 0.01])
+    garment = Mesh(v[[3]] + [[0.0, 0.0, 0.05]], np.zeros((0, 3), np.int64))  # 5 cm outside vertex 3
+    err = vertex_error(v + shift, truth, garment)
+    assert err["kind"] == "per_vertex" and err["mean"] == pytest.approx(0.01) and err["max"] == pytest.approx(0.01)
+    assert err["under_garment"]["vertices"] == 1 and err["exposed"]["vertices"] == 3
+
+
+def test_a_capture_without_labels_gets_one_error_naming_them_and_how_to_make_them():
+    from pgc.body.fit import check_capture_layers
+    from pgc.testing.capture_scenes import dome_cameras
+    from pgc.types import Capture, View
+
+    cams = dome_cameras(2, 16)
+    bare = Capture([View(c, np.zeros((16, 16, 3)), mask=np.ones((16, 16))) for c in cams])
+    with pytest.raises(PGCDataError, match="segmentation labels for every view.*pgc_segmentation_path"):
+        check_capture_layers(bare, "cap")
+    skinless = Capture([View(c, np.zeros((16, 16, 3)), segmentation=np.full((16, 16), GARMENT_LABEL)) for c in cams])
+    with pytest.raises(PGCDataError, match="labelled body"):
+        check_capture_layers(skinless, "cap")
+
+
+def _fit_record():
+    from pgc.body.fit import BodyFit
+    from scipy.spatial.transform import Rotation
+
+    rot = Rotation.from_rotvec([[0.1, 0.2, 0.3], [0.0, 0.0, 0.0]]).as_matrix()
+    mesh = Mesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]]),
+                np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]), face_labels=np.full(4, BODY_LABEL, np.int32),
+                name="body")
+    return BodyFit("anny", {"topology": "notoes_collapse10pc"}, {"gender": 0.25, "height": 0.5}, ("Hips", "Spine"),
+                   rot, np.array([0.1, 0.0, -0.2]), mesh, {"iterations": 3})
+
+
+def test_body_file_round_trip(tmp_path):
+    from pgc.io.body_fit import read_body_fit, write_body_fit
+
+    fit = _fit_record()
+    path = write_body_fit(tmp_path / "b", fit)
+    back = read_body_fit(path.parent)
+    assert (back.model, back.options, back.shape, back.joint_names, back.figures) == \
+        (fit.model, fit.options, fit.shape, fit.joint_names, fit.figures)
+    assert np.array_equal(back.rotations, fit.rotations) and np.array_equal(back.translation, fit.translation)
+    assert np.allclose(back.mesh.vertices, fit.mesh.vertices, atol=1e-7) and np.array_equal(back.mesh.faces,
+                                                                                               fit.mesh.faces)
+
+
+@pytest.mark.parametrize("edit, match", [
+    (lambda d: d.pop("format"), "not a fitted-body file"),
+    (lambda d: d.update(version=7), "'version'"),
+    (lambda d: d.update(rotations=[[[2, 0, 0], [0, 1, 0], [0, 0, 1]]] * 2), "proper rotation"),
+    (lambda d: d.update(rotations=[[1, 2]]), "'rotations'"),
+    (lambda d: d.update(translation=[0, "x", 1]), "'translation'|'rotations'"),
+    (lambda d: d.update(shape={"gender": None}), "'shape'"),
+    (lambda d: d.update(mesh="../body.ply"), "'mesh'"),
+])
+def test_a_body_file_in_the_wrong_format_gets_one_clear_error(tmp_path, edit, match):
+    from pgc.io.body_fit import read_body_fit, write_body_fit
+
+    path = write_body_fit(tmp_path, _fit_record())
+    doc = json.loads(path.read_text())
+    edit(doc)
+    path.write_text(json.dumps(doc))
+    with pytest.raises(PGCDataError, match=match):
+        read_body_fit(path)
+
+
+def test_a_mesh_or_other_file_given_as_the_body_file_is_refused(tmp_path):
+    from pgc.io.body_fit import read_body_fit
+
+    (tmp_path / "body.obj").write_text("v 0 0 0\n")
+    with pytest.raises(PGCDataError, match="not a fitted-body file.*pgc body fit"):
+        read_body_fit(tmp_path / "body.obj")
+    (tmp_path / "x.json").write_text("[1, 2")
+    with pytest.raises(PGCDataError, match="pgc body fit"):
+        read_body_fit(tmp_path / "x.json")
+
+
+def test_keypoints_round_trip_and_bad_keypoints(tmp_path):
+    from pgc.io.keypoints import read_keypoints, write_keypoints
+
+    assert read_keypoints(tmp_path, ["a"]) is None
+    write_keypoints(tmp_path, "cam 1", {"Head": (10.5, 3.0, 1.0), "LeftArm": (2.0, 4.0, 0.5)})
+    kp = read_keypoints(tmp_path, ["cam 1", "other"])
+    assert list(kp) == ["cam 1"] and kp["cam 1"].names == ("Head", "LeftArm")
+    assert np.array_equal(kp["cam 1"].xy, [[10.5, 3.0], [2.0, 4.0]]) and np.array_equal(kp["cam 1"].confidence,
+                                                                                         [1.0, 0.5])
+    write_keypoints(tmp_path, "bad", {"Head": (1.0, float("nan"), 1.0)})
+    with pytest.raises(PGCDataError, match="joint 'Head' must be"):
+        read_keypoints(tmp_path, ["bad"])
+
+
+def test_cli_refuses_a_capture_without_labels_in_one_line(tmp_path, capsys):
+    from pgc.cli import main
+    from pgc.io.capture import write_capture
+    from pgc.testing.capture_scenes import dome_cameras
+    from pgc.types import Capture, View
+
+    masks = []
+    for cam in dome_cameras(3, 16):
+        m = np.zeros((16, 16), np.float32)
+        m[4:12, 5:11] = 1
+        masks.append(View(cam, np.zeros((16, 16, 3)), mask=m))
+    write_capture(tmp_path / "cap", Capture(masks))
+    assert main(["body", "fit", str(tmp_path / "cap"), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "segmentation labels" in err[0] and "pgc_segmentation_path" in err[0]
+
+
+# ------------------------------------------------------------------------------------------ the fit itself (slow)
+
+@pytest.fixture(scope="module")
+def anny_scene(default_scene_renderer):
+    from pgc.testing.body_scenes import anny_capture, fixture_pose
+
+    body = REGISTRY.create("body_model", "anny")
+    rotations = fixture_pose(body, POSE)
+    scenes = {g: anny_capture(body, default_scene_renderer, SHAPE, rotations, (0.05, 0.0, -0.03), g, views=8, size=64)
+              for g in ("tight", "loose")}
+    return body, scenes
+
+
+@pytest.mark.slow
+@needs_anny
+@pytest.mark.parametrize("garment", ["tight", "loose"])
+def test_fit_recovers_a_known_anny_body_at_64_px(anny_scene, garment):
+    from pgc.body.fit import fit_body, vertex_error
+    from pgc.stages.body_fit import BodyFitSettings
+
+    body, scenes = anny_scene
+    capture, state, cloth = scenes[garment]
+    fit = fit_body(capture, body, BodyFitSettings(), "anny")
+    err = vertex_error(fit.mesh.vertices, Mesh(state.vertices, state.faces), cloth)
+    assert err["kind"] == "per_vertex" and err["under_garment"]["vertices"] > 100
+    # 64 px: a pixel is about 3.6 cm at the body; the fit is sub-pixel
+    assert err["mean"] < 0.02, err
+    assert fit.figures["silhouette_iou"] > 0.8  # the body against the person: a loose garment adds its own outline
+    start = vertex_error(body.forward(None, None, fit.translation).vertices, Mesh(state.vertices, state.faces))
+    assert err["mean"] < 0.5 * start["mean"]
+
+
+@pytest.mark.slow
+@needs_anny
+def test_cli_fit_with_keypoints_and_ground_truth(anny_scene, tmp_path, capsys):
+    from pgc.cli import main
+    from pgc.io.body_fit import read_body_fit
+    from pgc.io.capture import write_capture
+    from pgc.io.keypoints import write_keypoints
+    from pgc.io.mesh import write_mesh
+
+    body, scenes = anny_scene
+    capture, state, cloth = scenes["tight"]
+    cap = tmp_path / "cap"
+    write_capture(cap, capture)
+    for view in capture.views:
+        uv, _ = view.camera.project(state.joints)
+        write_keypoints(cap, view.camera.name, {n: (*uv[j], 1.0) for j, n in enumerate(body.joint_names)})
+    write_mesh(cap / "ground_truth" / "body.obj", Mesh(state.vertices, state.faces, name="body"))
+    write_mesh(cap / "ground_truth" / "garment.obj", cloth)
+    assert main(["body", "fit", str(cap), "--out", str(tmp_path / "out"), "--json", "--quiet"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["figures"]["keypoints"] is True
+    err = result["vertex_error_m"]
+    assert err["mean"] < 0.02 and err["under_garment"]["mean"] is not None
+    back = read_body_fit(tmp_path / "out")
+    assert back.shape == pytest.approx(result["shape"])
+    assert np.allclose(body.forward(back.shape, back.rotations, back.translation).vertices, back.mesh.vertices,
+                       atol=1e-5)
+
+
+@pytest.mark.slow
+@needs_anny
+def test_reconstruct_stage_fits_a_capture_without_body_truth_and_reuses_its_result(anny_scene, tmp_path):
+    from pgc.config import load
+    from pgc.events import Reporter
+    from pgc.io.capture import read_capture, write_capture
+    from pgc.pipeline.cache import StageCache, file_key
+    from pgc.pipeline.reconstruct import STAGES, ReconstructInputs, has_body_truth
+    from pgc.pipeline.runner import StageContext, StageRunner
+
+    capture = anny_scene[1]["loose"][0]
+    cap = tmp_path / "cap"
+    write_capture(cap, capture)
+    assert not has_body_truth(cap)
+    (tmp_path / "c.toml").write_text("[stages.body_fit]\niterations = 30\nviews = 4\n")
+    cfg = load(tmp_path / "c.toml")
+    stage, step = next(pair for pair in STAGES if pair[0].name == "body_fit")
+    values = []
+    for _ in range(2):
+        ctx = StageContext(cfg, Reporter.silent(), ReconstructInputs(read_capture(cap)))
+        runner = StageRunner(StageCache(tmp_path / "stages"), ctx, {"capture": file_key(cap)})
+        values.append(runner.run(stage, step))
+    assert runner.seconds["body_fit"] == 0.0  # the second run loads the stored fit
+    first, second = values
+    assert first.figures["iterations"] <= 30 and first.figures["views"] == 4
+    assert second.shape == pytest.approx(first.shape) and np.allclose(second.rotations, first.rotations)
+    assert np.allclose(second.mesh.vertices, first.mesh.vertices, atol=1e-6)
