@@ -100,14 +100,9 @@ class _ViewData:
 def check_capture_layers(capture: Capture, where: str) -> None:
     """Refuse a capture the fit cannot use: every view needs segmentation labels (0 background, 1 body,
     garments above); masks are optional (the labels' foreground stands in)."""
-    missing = [v.camera.name for v in capture.views if v.segmentation is None]
-    if missing:
-        raise PGCDataError(
-            f"{where}: the body fit needs segmentation labels for every view, and {len(missing)} of "
-            f"{len(capture.views)} views have none ({', '.join(missing[:4])}{', ...' if len(missing) > 4 else ''}); "
-            "add a grey 8-bit PNG per view with 0 background, 1 body (skin, hair, shoes), 2 garment, and name it in "
-            "transforms.json as each frame's 'pgc_segmentation_path' (e.g. segmentation/<view>.png, made with a "
-            "person/clothing segmenter); a 'mask_path' foreground mask per frame is optional")
+    from pgc.io.capture_checks import require_segmentation
+
+    require_segmentation(capture, where, "the body fit")
     if not any((v.segmentation == BODY_LABEL).any() for v in capture.views):
         raise PGCDataError(f"{where}: no pixel of any view is labelled body ({BODY_LABEL}) in the segmentation; the "
                            "fit needs the visible skin labelled (0 background, 1 body, 2 garment)")

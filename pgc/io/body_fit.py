@@ -20,6 +20,8 @@ from pgc.io.atomic import ensure_folder, write_json
 from pgc.io.limits import read_json
 from pgc.io.mesh import read_mesh, write_mesh
 
+BODY_FIT_DIR = "body_fit"
+"""An asset's folder of the fitted body, for a capture without a ground-truth body (``pgc reconstruct``)."""
 BODY_JSON = "body.json"
 BODY_MESH = "body.ply"
 FORMAT = "pgc-body-fit"

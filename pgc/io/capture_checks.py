@@ -62,3 +62,16 @@ def _scene_scale(capture: Capture, centres: np.ndarray) -> float:
         point = np.linalg.solve(A, b)
         scale = max(scale, float(np.median(np.linalg.norm(centres - point, axis=1))))
     return scale
+
+
+def require_segmentation(capture: Capture, source: str, what: str) -> None:
+    """Refuse, naming ``source`` and what needs them (``what``), a capture with views lacking segmentation labels;
+    the message says how to make them (masks are optional: the labels' foreground stands in)."""
+    missing = [v.camera.name for v in capture.views if v.segmentation is None]
+    if missing:
+        raise PGCDataError(
+            f"{source}: {what} needs segmentation labels for every view, and {len(missing)} of {len(capture.views)} "
+            f"views have none ({', '.join(missing[:4])}{', ...' if len(missing) > 4 else ''}); add a grey 8-bit PNG "
+            "per view with 0 background, 1 body (skin, hair, shoes), 2 garment, and name it in transforms.json as "
+            "each frame's 'pgc_segmentation_path' (e.g. segmentation/<view>.png, made with a person/clothing "
+            "segmenter; docs/your-capture.md); a 'mask_path' foreground mask per frame is optional")

@@ -21,6 +21,7 @@ from pgc.config import RunConfig
 from pgc.errors import PGCDataError
 from pgc.events import Reporter
 from pgc.io.atomic import write_json
+from pgc.io.body_fit import BODY_FIT_DIR
 from pgc.io.limits import read_json
 from pgc.io.timings import write_timings
 from pgc.motion.drive import ClipOptions
@@ -71,7 +72,8 @@ def animate(asset_dir: str | Path, motion_spec: str, out: str | Path, cfg: RunCo
     asset = read_asset(asset_dir)
     capture = Path(capture_dir) if capture_dir else source_capture(asset.config)
     settings = cfg.stage("animate")
-    motion = resolve_motion(motion_spec, capture, settings.seconds, clip, lambda: cfg.create("body_model"))
+    motion = resolve_motion(motion_spec, capture, settings.seconds, clip, lambda: cfg.create("body_model"),
+                            asset_dir / BODY_FIT_DIR)
     runner = StageRunner(StageCache(out / "stages"), StageContext(cfg, reporter, AnimateInputs(asset, motion)), {
         "asset": asset_key(asset_dir), "motion": {"spec": motion_spec, "vertices": array_key(motion.vertices),
                                                   "faces": array_key(motion.faces), "fps": motion.fps}})

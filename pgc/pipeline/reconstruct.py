@@ -21,6 +21,7 @@ from pgc.config import RunConfig
 from pgc.events import Reporter
 from pgc.geometry.garment import garment_selection
 from pgc.io.atomic import write_json
+from pgc.io.body_fit import BODY_FIT_DIR
 from pgc.io.limits import read_json
 from pgc.pipeline.cache import StageCache, file_key
 from pgc.pipeline.garment import body_occluder, garment_gaussians, with_occluder
@@ -29,10 +30,6 @@ from pgc.pipeline.stage_io import load_gaussians, load_mesh, save_gaussians, sav
 from pgc.stages import base_color, body_fit, fit_splats, garment, material, mesh
 from pgc.stages.garment import GarmentSettings
 from pgc.types import Capture, GarmentAsset, Light, Material, Mesh
-
-
-BODY_FIT_DIR = "body_fit"
-"""The asset's folder of the fitted body (body.json, body.ply), for a capture without a ground-truth body."""
 
 
 @dataclass(frozen=True)
@@ -180,8 +177,11 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
     from pgc.io.capture import read_capture
     from pgc.io.timings import write_timings
 
+    from pgc.io.capture_checks import require_segmentation
+
     out = Path(out)
     capture = read_capture(capture_dir)
+    require_segmentation(capture, str(Path(capture_dir) / "transforms.json"), "reconstruction")
     ctx = StageContext(cfg, reporter or Reporter.silent(), ReconstructInputs(capture))
     runner = StageRunner(StageCache(out / "stages"), ctx, {"capture": file_key(capture_dir),
                                                            "garment_labels": capture.garment_label_ids})

@@ -7,9 +7,16 @@ ambient (view independent), rendered with 2x2 supersampling through cameras on a
 reconstruction and splat-fit tests.
 
 :func:`textured_box_capture`: a textured cube seen by exactly posed cameras (the calibrator's scene).
+
+:func:`strip_ground_truth`: a copy of a capture folder as a user brings one: images, masks, labels, cameras,
+nothing the generator knows.
 """
 
 from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
 
 import numpy as np
 
@@ -158,3 +165,25 @@ def textured_box_capture(views: int = 8, size: int = 192) -> Capture:
                                for c in range(3)], -1)
         out.append(View(cam, image, hit.astype(np.float32), hit.astype(np.uint8)))
     return Capture(out)
+
+
+GROUND_TRUTH_PARTS = ("ground_truth", "extras", "light", "contact_sheet.png")
+"""What of a synthetic capture folder a real capture does not have."""
+GROUND_TRUTH_KEYS = ("pgc_metadata", "pgc_light")
+"""Top-level transforms.json keys written from the generator's knowledge (per frame: ``pgc_extras``)."""
+
+
+def strip_ground_truth(capture: str | Path, out: str | Path) -> Path:
+    """Copy the capture folder ``capture`` to ``out`` without its ground truth (:data:`GROUND_TRUTH_PARTS`), its
+    extra layers and recorded light (:data:`GROUND_TRUTH_KEYS`): transforms.json, images, masks, segmentation
+    and backgrounds only, as a user's own capture."""
+    capture, out = Path(capture), Path(out)
+    shutil.copytree(capture, out, ignore=lambda folder, names: [n for n in names if Path(folder) == capture
+                                                                and n in GROUND_TRUTH_PARTS])
+    doc = json.loads((out / "transforms.json").read_text())
+    for key in GROUND_TRUTH_KEYS:
+        doc.pop(key, None)
+    for frame in doc["frames"]:
+        frame.pop("pgc_extras", None)
+    (out / "transforms.json").write_text(json.dumps(doc, indent=1))
+    return out
