@@ -2,6 +2,10 @@
 VENV ?= .venv
 PRESET ?= default
 OUT ?= runs/demo-$(PRESET)
+# The suite runs on pytest-xdist workers, a test file per worker at a time (module fixtures built once);
+# tests/conftest.py gives each worker's torch its share of the cores. TEST_WORKERS=0: one process.
+TEST_WORKERS ?= 2
+PYTEST = $(VENV)/bin/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 .PHONY: setup demo test test-fast
 setup:
@@ -11,7 +15,7 @@ demo: setup
 	$(VENV)/bin/pgc demo --preset $(PRESET) --out $(OUT)
 
 test: setup
-	$(VENV)/bin/python -m pytest -q
+	$(PYTEST)
 
 test-fast: setup
-	$(VENV)/bin/python -m pytest -q -m "not slow"
+	$(PYTEST) -m "not slow"
