@@ -42,6 +42,14 @@ def pytest_configure(config: pytest.Config) -> None:
         torch.set_num_threads(max(1, (os.cpu_count() or 1) // workers))
 
 
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Under pytest-xdist, the files holding ``slow`` tests go first (each keeps its order; so does the rest), so
+    the long files start early and the short ones fill the workers' ends instead of one long file ending last."""
+    if hasattr(config, "workerinput"):
+        heavy = {item.path for item in items if item.get_closest_marker("slow")}
+        items.sort(key=lambda item: item.path not in heavy)
+
+
 @pytest.fixture
 def one_torch_thread():
     """Run the test with one torch thread (tiny tensors: threading only adds overhead on a shared machine)."""
