@@ -2,6 +2,11 @@
 VENV ?= .venv
 PRESET ?= default
 OUT ?= runs/demo-$(PRESET)
+# TEST_WORKERS=2 runs the suite on two pytest-xdist workers, a test file per worker at a time (module fixtures
+# built once; tests/conftest.py gives each worker's torch its share of the cores). 0: one process (the default
+# until tests/test_kill.py is shown to hold its timing beside a second worker).
+TEST_WORKERS ?= 0
+PYTEST = $(VENV)/bin/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 .PHONY: setup demo test test-fast
 setup:
@@ -11,7 +16,7 @@ demo: setup
 	$(VENV)/bin/pgc demo --preset $(PRESET) --out $(OUT)
 
 test: setup
-	$(VENV)/bin/python -m pytest -q
+	$(PYTEST)
 
 test-fast: setup
-	$(VENV)/bin/python -m pytest -q -m "not slow"
+	$(PYTEST) -m "not slow"

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import fcntl
+import os
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +28,26 @@ def overlapping_gaussians(n: int, seed: int, sh_k: int = 16) -> WorldGaussians:
     means = np.c_[rng.uniform(-0.35, 0.35, n), rng.uniform(-0.25, 0.25, n), rng.uniform(0.8, 1.6, n)]
     return WorldGaussians(means=means, quats=rng.normal(size=(n, 4)), scales=rng.uniform(0.01, 0.12, (n, 3)),
                           opacities=rng.uniform(0.05, 1.0, n), sh=rng.normal(0, 0.4, (n, sh_k, 3)))
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Under pytest-xdist (``make test`` runs ``-n 2``), each worker's torch gets its share of the cores, so two
+    workers never run more torch threads than there are cores."""
+    workers = config.workerinput["workercount"] if hasattr(config, "workerinput") else 1
+    if workers > 1:
+        try:
+            import torch
+        except ImportError:
+            return
+        torch.set_num_threads(max(1, (os.cpu_count() or 1) // workers))
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Under pytest-xdist, the files holding ``slow`` tests go first (each keeps its order; so does the rest), so
+    the long files start early and the short ones fill the workers' ends instead of one long file ending last."""
+    if hasattr(config, "workerinput"):
+        heavy = {item.path for item in items if item.get_closest_marker("slow")}
+        items.sort(key=lambda item: item.path not in heavy)
 
 
 @pytest.fixture
@@ -115,12 +137,21 @@ def install_distribution(site: Path, monkeypatch: pytest.MonkeyPatch, name: str,
 
 
 @pytest.fixture(scope="session")
-def tiny_demo(tmp_path_factory) -> Path:
-    """``pgc demo --preset tiny``, run once a session; its users copy what they change."""
+def tiny_demo(tmp_path_factory, pytestconfig) -> Path:
+    """``pgc demo --preset tiny``, run once a session (once for all pytest-xdist workers); its users copy what
+    they change."""
     from pgc.cli import main
 
-    out = tmp_path_factory.mktemp("tiny_demo") / "demo"
-    assert main(["demo", "--preset", "tiny", "--out", str(out), "--quiet"]) == 0
+    root = tmp_path_factory.getbasetemp()
+    if hasattr(pytestconfig, "workerinput"):
+        root = root.parent  # the folder all the workers of this pytest-xdist run share: one demo for all
+    out, done = root / "tiny_demo" / "demo", root / "tiny_demo" / "done"
+    done.parent.mkdir(exist_ok=True)
+    with open(root / "tiny_demo" / "lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # the other workers wait for the first one's demo
+        if not done.exists():
+            assert main(["demo", "--preset", "tiny", "--out", str(out), "--quiet"]) == 0
+            done.touch()
     return out
 
 

@@ -437,6 +437,7 @@ def test_os_errors_without_a_path_do_not_pretend_to_have_one():
 
 def test_an_unreachable_scheduler_is_named_with_how_to_start_one(world, tmp_path, capsys):  # noqa: F811
     import dask
+    import distributed  # noqa: F401  its defaults loaded first: leaving set() would drop them all otherwise
 
     argv, _ = _sweep_case({}, [], ("--scheduler", "tcp://127.0.0.1:1"))(tmp_path, world)
     with dask.config.set({"distributed.comm.timeouts.connect": "0.5s"}):
