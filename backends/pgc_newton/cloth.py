@@ -42,6 +42,9 @@ class NewtonVBDSimulator(Simulator):
     options: NewtonClothOptions
 
     def simulate(self, garment: Mesh, motion: BodyMotion, reporter: Reporter | None = None) -> Simulation:
+        from pgc.sim.driver import check_frame_rate
+
+        check_frame_rate(motion.fps)
         reporter = reporter or Reporter.silent()
         o = self.options
         schedule = body_schedule(motion, o.settle_frames, o.blend_frames)

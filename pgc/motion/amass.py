@@ -42,15 +42,17 @@ FIX = ("an AMASS-layout npz needs 'poses' (T, 3 K) with K = 24, 52 or 55, 'trans
 
 def is_pose_npz(path: str | Path) -> bool:
     """Whether ``path`` is an existing ``.npz`` holding a ``poses`` array (an AMASS-layout clip, not a motion
-    file of body vertices)."""
+    file of body vertices); an unreadable file is not (the motion-file reader reports what is wrong with it)."""
+    import zipfile
+
     path = Path(path)
     if path.suffix.lower() != ".npz" or not path.is_file():
         return False
     try:
         with np.load(path, allow_pickle=False) as z:
             return "poses" in z.files
-    except (OSError, ValueError) as exc:
-        raise PGCDataError(f"{path}: not a readable npz ({exc}); {FIX}") from None
+    except (OSError, ValueError, zipfile.BadZipFile):
+        return False
 
 
 def read_amass(path: str | Path, body: "BodyModel", fps: float | None = None) -> Clip:
@@ -79,10 +81,12 @@ def read_amass(path: str | Path, body: "BodyModel", fps: float | None = None) ->
 
 def read_pose_arrays(path: Path) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
     """``poses`` (T, 3 K), ``trans`` (T, 3), the frame rate and ``betas`` (possibly empty) of an AMASS npz."""
+    import zipfile
+
     try:
         with np.load(path, allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files if k in ("poses", "trans", "betas", *FRAME_RATE_KEYS)}
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, zipfile.BadZipFile) as exc:
         raise PGCDataError(f"{path}: not a readable npz ({exc}); {FIX}") from None
     missing = [k for k in ("poses", "trans") if k not in arrays]
     rate_key = next((k for k in FRAME_RATE_KEYS if k in arrays), None)

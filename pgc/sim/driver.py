@@ -66,11 +66,16 @@ class Stepper(ABC):
         model's constraint order."""
 
 
-def step_settings(options: XPBDOptions, fps: float) -> StepSettings:
-    """The substep settings at the motion's ``fps``; a NaN, infinite or non-positive rate is refused (its time
-    step would make the first frame diverge, reported as a stiffness problem)."""
+def check_frame_rate(fps: float) -> None:
+    """Refuse a NaN, infinite or non-positive frame rate (its time step would make the first frame diverge, which
+    a simulator would report as a stiffness problem)."""
     if not (math.isfinite(fps) and fps > 0):
         raise PGCDataError(f"motion: fps must be a finite positive number (frames per second), got {fps}")
+
+
+def step_settings(options: XPBDOptions, fps: float) -> StepSettings:
+    """The substep settings at the motion's ``fps`` (checked by :func:`check_frame_rate`)."""
+    check_frame_rate(fps)
     h = 1.0 / (fps * options.substeps)
     return StepSettings(options.substeps, options.iterations, h, math.exp(-options.damping * h),
                         options.collision_offset, options.friction, options.contact_radius,
