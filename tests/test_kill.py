@@ -60,7 +60,7 @@ texture_size = 32
 num_views = 2
 [stages.material]
 max_iterations = 3
-max_image_side = 16
+max_image_side = 32
 eval_spp = 4
 spp = 2
 views_per_step = 2
