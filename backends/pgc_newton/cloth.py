@@ -42,7 +42,7 @@ class NewtonVBDSimulator(Simulator):
     options: NewtonClothOptions
 
     def simulate(self, garment: Mesh, motion: BodyMotion, reporter: Reporter | None = None) -> Simulation:
-        from pgc.sim.driver import check_frame_rate
+        from pgc.sim.driver import check_finite_frame, check_frame_rate
 
         check_frame_rate(motion.fps)
         reporter = reporter or Reporter.silent()
@@ -58,9 +58,7 @@ class NewtonVBDSimulator(Simulator):
         with reporter.stage("animate", total=n, vertices=len(garment.vertices), frames=motion.num_frames) as st:
             for k in range(1, n + 1):
                 x = cloth.frame(schedule.vertices[k - 1], schedule.vertices[k], 1.0 / motion.fps)
-                if not np.all(np.isfinite(x)):
-                    raise FloatingPointError(f"simulation of '{garment.name}' diverged at frame {k}; lower the "
-                                             "stiffness or raise substeps")
+                check_finite_frame(x, garment.name, k)
                 t = k - schedule.first_motion
                 if t >= 0:
                     out[t] = x

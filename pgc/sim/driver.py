@@ -73,6 +73,13 @@ def check_frame_rate(fps: float) -> None:
         raise PGCDataError(f"motion: fps must be a finite positive number (frames per second), got {fps}")
 
 
+def check_finite_frame(x: np.ndarray, garment_name: str, frame: int) -> None:
+    """Refuse a simulated frame with NaN or infinite positions (a diverged simulation)."""
+    if not np.all(np.isfinite(x)):
+        raise FloatingPointError(f"simulation of '{garment_name}' diverged at frame {frame}; lower the stiffness "
+                                 "or raise substeps")
+
+
 def step_settings(options: XPBDOptions, fps: float) -> StepSettings:
     """The substep settings at the motion's ``fps`` (checked by :func:`check_frame_rate`)."""
     check_frame_rate(fps)
@@ -157,9 +164,7 @@ class XPBDSimulator(Simulator):
             for k in range(1, n + 1):
                 body1 = schedule.vertices[k]
                 x, res, c = runner.step(schedule.vertices[k - 1], body1)
-                if not np.all(np.isfinite(x)):
-                    raise FloatingPointError(f"simulation of '{garment.name}' diverged at frame {k}; "
-                                             "lower the stiffness or raise substeps")
+                check_finite_frame(x, garment.name, k)
                 t = k - schedule.first_motion
                 if t >= 0:
                     out[t] = x
