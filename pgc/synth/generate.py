@@ -17,9 +17,11 @@ import numpy as np
 
 from pgc.errors import PGCDataError
 from pgc.events import Reporter
-from pgc.types import Capture, Mesh, View
+from pgc.types import Camera, Capture, Mesh, View
 
 if TYPE_CHECKING:
+    from pgc.synth.body import SynthBody
+    from pgc.synth.ground_truth import GroundTruth
     from pgc.roles.body_model import BodyModel
     from pgc.roles.scene_renderer import SceneRenderer
 
@@ -70,8 +72,8 @@ PRESETS: dict[str, SynthPreset] = {
     "tiny": SynthPreset(views=6, resolution=64, garment_edge=0.04, texture=256, spp=16,
                         gt_samples=2, fibre_scale=0.3, envmap_height=16),
     "default": SynthPreset(views=128, resolution=192, garment_edge=0.02, texture=1024, spp=64,
-                           gt_samples=4, fibre_scale=1.0, framing="garment", detail="seams", fit="resting",
-                           looseness=0.012),
+                           gt_samples=4, fibre_scale=1.0, fabric="cotton", framing="garment", detail="seams",
+                           fit="resting", looseness=0.012),
     "cotton": SynthPreset(views=128, resolution=256, garment_edge=0.02, texture=1024, spp=64,
                           gt_samples=4, fibre_scale=1.0),
     "large": SynthPreset(views=64, resolution=1024, garment_edge=0.012, texture=2048, spp=64,
@@ -117,40 +119,46 @@ def garment_gap(body: Mesh, garment: Mesh) -> dict[str, float]:
             "shoulders_median": float(np.median(d[top]))}
 
 
-def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garment: str | None = None,
-             fabric: str | None = None, seed: int = 0, looseness: float | None = None,
-             reporter: Reporter | None = None, detail: str | None = None, fit: str | None = None,
-             capture_light: str | None = None, *, renderer: SceneRenderer, body_model: BodyModel) -> Capture:
-    """Generate a synthetic capture into ``out``, rendered by ``renderer`` (the configuration's, see
-    :func:`pgc.synth.render.scene_renderer`), of a body of ``body_model`` (the configuration's ``[body_model]``)
-    with the phenotype :func:`pgc.synth.body.draw_phenotype` draws for ``seed``, and return it (as written).
+@dataclass
+class SynthScene:
+    """A synthetic scene before it is rendered: the resolved preset, the body, the ground truth, the dome cameras
+    and the garment's clearance from the body (:func:`garment_gap`)."""
 
-    The same arguments give byte-identical files. ``preset``: a name of :data:`PRESETS` or a SynthPreset;
-    ``garment``, ``fabric``, ``looseness``, ``detail``, ``fit`` and ``capture_light`` override the preset's.
-    """
-    from pgc.io.capture import write_capture
-    from pgc.synth import fabrics, garments, rig
-    from pgc.synth.body import draw_phenotype, make_body
-    from pgc.synth.contact_sheet import write_contact_sheet
-    from pgc.synth.detail import get_detail, make_detail, root_offsets
-    from pgc.synth.ground_truth import GroundTruth, body_record, write_ground_truth
-    from pgc.synth.motions import MOTIONS, motion_rotations
+    preset: SynthPreset
+    body: SynthBody
+    ground_truth: GroundTruth
+    cameras: list[Camera]
+    gap: dict[str, float]
+
+
+def resolve_preset(preset: str | SynthPreset, garment: str | None = None, fabric: str | None = None,
+                   looseness: float | None = None, detail: str | None = None, fit: str | None = None,
+                   capture_light: str | None = None) -> SynthPreset:
+    """The preset (a name of :data:`PRESETS` or a SynthPreset) with the given overrides, its spp rounded up to
+    what its sampler takes."""
     p = get_preset(preset) if isinstance(preset, str) else preset
     if p.sampler == "ldsampler":  # it takes powers of 4 only: round up rather than let Mitsuba warn
         p = replace(p, spp=int(4 ** np.ceil(np.log(max(p.spp, 1)) / np.log(4) - 1e-9)))
-    p = replace(p, garment=garment or p.garment, fabric=fabric or p.fabric, detail=detail or p.detail,
-                fit=fit or p.fit, looseness=p.looseness if looseness is None else float(looseness),
-                capture_light=capture_light or p.capture_light)
-    garment, fabric, looseness = p.garment, p.fabric, p.looseness
-    fab = fabrics.get_fabric(fabric)
+    return replace(p, garment=garment or p.garment, fabric=fabric or p.fabric, detail=detail or p.detail,
+                   fit=fit or p.fit, looseness=p.looseness if looseness is None else float(looseness),
+                   capture_light=capture_light or p.capture_light)
+
+
+def build_scene(p: SynthPreset, seed: int, body_model: BodyModel, reporter: Reporter | None = None) -> SynthScene:
+    """The scene of the resolved preset ``p`` and ``seed``: body, garment, fabric (textures, fibres, detail),
+    capture light and dome cameras (stages 'synth_geometry' and 'synth_fabric')."""
+    from pgc.synth import fabrics, garments, rig
+    from pgc.synth.body import draw_phenotype, make_body
+    from pgc.synth.detail import get_detail, make_detail, root_offsets
+    from pgc.synth.ground_truth import GroundTruth
+
+    reporter = reporter or Reporter.silent()
+    fab = fabrics.get_fabric(p.fabric)
     light = rig.capture_light(p.capture_light)
     detail_spec = get_detail(p.detail)
-    reporter = reporter or Reporter.silent()
-    out = Path(out)
-
     with reporter.stage("synth_geometry") as st:
         body = make_body(body_model, draw_phenotype(body_model, seed))
-        cloth = garments.make_garment(body, garment, looseness=looseness, resolution=p.garment_edge, fit=p.fit)
+        cloth = garments.make_garment(body, p.garment, looseness=p.looseness, resolution=p.garment_edge, fit=p.fit)
         gap = garment_gap(body.mesh(), cloth)
         st.record(body_vertices=len(body.vertices), body_height_m=round(body.height, 3),
                   garment_vertices=len(cloth.vertices),
@@ -165,11 +173,36 @@ def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garm
                 fibres.offset = root_offsets(height, cloth, fibres.face, fibres.bary)
         st.record(fibres=0 if fibres is None else len(fibres.face),
                   detail_vertices=0 if surface is None else len(surface.offset))
-
     center, radius = framing_sphere(p.framing, body.height, cloth.vertices)
     cameras = rig.dome_cameras(p.views, p.resolution, p.resolution, center=center,
                                distance=1.55 * body.height, subject_radius=radius, seed=seed)
     gt = GroundTruth(body.mesh(), cloth, material, light, normal_map, fibres, detail=surface)
+    return SynthScene(p, body, gt, cameras, gap)
+
+
+def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garment: str | None = None,
+             fabric: str | None = None, seed: int = 0, looseness: float | None = None,
+             reporter: Reporter | None = None, detail: str | None = None, fit: str | None = None,
+             capture_light: str | None = None, *, renderer: SceneRenderer, body_model: BodyModel) -> Capture:
+    """Generate a synthetic capture into ``out``, rendered by ``renderer`` (the configuration's, see
+    :func:`pgc.synth.render.scene_renderer`), of a body of ``body_model`` (the configuration's ``[body_model]``)
+    with the phenotype :func:`pgc.synth.body.draw_phenotype` draws for ``seed``, and return it (as written).
+
+    The same arguments give byte-identical files. ``preset``: a name of :data:`PRESETS` or a SynthPreset;
+    ``garment``, ``fabric``, ``looseness``, ``detail``, ``fit`` and ``capture_light`` override the preset's.
+    """
+    from pgc.io.capture import write_capture
+    from pgc.synth import rig
+    from pgc.synth.contact_sheet import write_contact_sheet
+    from pgc.synth.ground_truth import body_record, write_ground_truth
+    from pgc.synth.motions import MOTIONS, motion_rotations
+
+    p = resolve_preset(preset, garment, fabric, looseness, detail, fit, capture_light)
+    reporter = reporter or Reporter.silent()
+    out = Path(out)
+    synth = build_scene(p, seed, body_model, reporter)
+    body, gt, cameras, gap = synth.body, synth.ground_truth, synth.cameras, synth.gap
+    cloth, fibres, surface, light = gt.garment, gt.fibres, gt.detail, gt.light
     geometry = gt.geometry()
     scene, labels = renderer.build_scene(geometry, light)
     empty, _ = renderer.build_scene(None, light)
@@ -184,8 +217,8 @@ def generate(out: str | os.PathLike, preset: str | SynthPreset = "default", garm
                               {"linear": color, "albedo": layers["albedo"], "depth": layers["depth"]}))
             st.progress(i + 1)
 
-    metadata = {"generator": "pgc synth", "preset": asdict(p), "garment": garment, "fabric": fabric, "seed": seed,
-                "looseness": looseness, "capture_light": p.capture_light, "ground_truth": "ground_truth/scene.json",
+    metadata = {"generator": "pgc synth", "preset": asdict(p), "garment": p.garment, "fabric": p.fabric, "seed": seed,
+                "looseness": p.looseness, "capture_light": p.capture_light, "ground_truth": "ground_truth/scene.json",
                 "body": body_record(body)}
     capture = Capture(views, light=light, metadata=metadata)
     with reporter.stage("synth_write"):
