@@ -211,3 +211,21 @@ def test_an_older_material_json_is_refused_with_the_fix(tmp_path):
     (gt / "material.json").write_text(json.dumps({"brdf": "lambertian", "params": {}, "base_color": "x.exr"}))
     with pytest.raises(PGCDataError, match="older 'pgc synth'.*generate it again"):
         read_ground_truth(tmp_path / "old")
+
+
+def test_the_default_preset_the_demo_scene_writes_a_fibre_truth():
+    """The demo's scene (synth preset 'default') is a fibre truth: its material.json names 'hair-fibres' and the
+    fibre layer, never a BRDF the fit chooses; the in-family cotton stays available as the control."""
+    from pgc.synth.generate import get_preset
+    from pgc.synth.ground_truth import GroundTruth, material_record
+
+    preset = get_preset("default")
+    fab = fabrics.get_fabric(preset.fabric)
+    m = patch(0.05)
+    material, normal_map = fabrics.make_material(fab, m, 16, seed=0)
+    fib = fabrics.make_fibres(fab, m, material, seed=0, scale=preset.fibre_scale)
+    doc = material_record(GroundTruth(m, m, material, Light(np.ones(3)), normal_map, fib), preset.fabric)
+    assert doc["appearance"] == fabrics.HAIR_FIBRES and doc["surface"]["brdf"] == "lambertian"
+    assert doc["fibre_layer"]["count"] == len(fib.face) > 0
+    assert fibres.HairLayer.from_record(doc["fibre_layer"]) == fab.hair
+    assert get_preset("default", fabric="cotton-sheen").fabric == "cotton-sheen"

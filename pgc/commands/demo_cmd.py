@@ -20,8 +20,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "resumes.",
         epilog="presets (pgc synth's, with the settings of pgc/presets/demo_PRESET.toml, else demo_default.toml):\n"
                "  tiny     6 views at 64 px, about 30 s; for tests\n"
-               "  default  the demo scene: a striped cotton tee resting on the body, with seams, hems, a patch\n"
-               "           pocket and folds as geometry; 128 views at 192 px framing the garment; about 10 min\n"
+               "  default  the demo scene: a striped cotton tee (a fibre truth) resting on the body, with seams,\n"
+               "           hems, a patch pocket and folds as geometry; 128 views at 192 px framing the garment;\n"
+               "           about 16 min\n"
                "  cotton   the earlier default: the same tee without the detail, loose, 128 views at 256 px of\n"
                "           the whole body (the garment about 90 px tall); about 7-8 min\n"
                "  knit     a rib-knit tee with knit relief and fibre fuzz, 32 views at 320 px of the garment;\n"

@@ -31,8 +31,8 @@ forms:
                                 and one sRGB PNG per frame and camera
 
 presets: tiny (6 views, 64 px, seconds)
-         default (the demo: 128 views at 192 px framing the garment; a striped cotton tee resting on the body,
-           with seams, ribbed hems, a patch pocket and folds as geometry)
+         default (the demo: 128 views at 192 px framing the garment; a striped cotton tee (the cotton fibre
+           truth) resting on the body, with seams, ribbed hems, a patch pocket and folds as geometry)
          cotton (the earlier default: 128 views at 256 px of the whole body; the same tee, loose, no detail)
          large (64 views, 1024 px, whole body)
          knit (32 views, 320 px, garment framing: a rib-knit (pgc-sheen) tee resting on the body with knit

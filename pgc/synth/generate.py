@@ -50,8 +50,9 @@ class SynthPreset:
     garment: str = "tshirt"
     """Garment kind (:data:`pgc.synth.garments` names: tshirt, dress)."""
     fabric: str = "cotton-sheen"
-    """Fabric preset (:data:`pgc.synth.fabrics.FABRICS`): the presets keep the pgc-sheen cotton (an in-family
-    control), as a fibre truth costs 2.7-4.9 times its render time (docs/synth.md, "Fibre truths")."""
+    """Fabric preset (:data:`pgc.synth.fabrics.FABRICS`): the demo's ``default`` preset takes the cotton fibre
+    truth; the others keep the pgc-sheen cotton (an in-family control), as a fibre truth costs 2.7-4.9 times its
+    render time (docs/synth.md, "Fibre truths")."""
     framing: str = "body"
     """'body': the whole body fills the views; 'garment': the same dome cameras zoom onto the garment (its
     bounding sphere times ``GARMENT_FRAME_MARGIN``, room for the motions), so its fabric takes the pixels."""
