@@ -1,6 +1,5 @@
 """End to end: `pgc demo --preset tiny` (synthetic capture -> asset -> three motions -> metrics, report)."""
 
-import dataclasses
 import json
 
 import numpy as np
@@ -78,69 +77,3 @@ def test_the_demo_scene_is_a_fibre_truth_with_near_field_detail_and_the_cotton_s
                                                                                             256, 128)
 
 
-class CountingRenderer:
-    """The real scene renderer, counting the scenes it builds."""
-
-    def __init__(self, inner):
-        self.inner, self.options, self.builds = inner, inner.options, 0
-
-    def build_scene(self, geometry, light):
-        self.builds += 1
-        return self.inner.build_scene(geometry, light)
-
-    def render_color(self, *args, **kwargs):
-        return self.inner.render_color(*args, **kwargs)
-
-    def ground_truth_layers(self, *args, **kwargs):
-        return self.inner.ground_truth_layers(*args, **kwargs)
-
-
-@pytest.mark.slow
-def test_a_ground_truth_frame_that_runs_share_is_rendered_once(tmp_path, default_scene_renderer, default_body_model):
-    """Every motion starts in the capture pose: its truth frame is rendered once per process and reused."""
-    from pgc.synth.frames import render_frames
-    from pgc.synth.generate import generate, get_preset
-    from pgc.synth.ground_truth import read_ground_truth
-
-    capture = generate(tmp_path / "cap", get_preset("tiny", views=1, resolution=24), seed=3,
-                       renderer=default_scene_renderer, body_model=default_body_model)
-    gt = read_ground_truth(tmp_path / "cap")
-    renderer = CountingRenderer(default_scene_renderer)
-    cams = [capture.views[0].camera]
-    garment, body = gt.garment.vertices[None], gt.body.vertices[None]
-    first = render_frames(tmp_path / "cap", garment, body, cams, spp=4, renderer=renderer)
-    again = render_frames(tmp_path / "cap", garment, body, cams, spp=4, renderer=renderer)
-    assert renderer.builds == 1
-    render_frames(tmp_path / "cap", garment + np.array([0.0, 0.001, 0.0]), body, cams, spp=4, renderer=renderer)
-    assert renderer.builds == 2
-    unkeyed = dataclasses.replace(gt, manifest=None)  # a truth built in memory: never memoised
-    fresh = render_frames(unkeyed, garment, body, cams, spp=4, renderer=renderer)
-    assert renderer.builds == 3
-    for k in first[0]:  # the memo returns what a render gives (Mitsuba is deterministic for a seed)
-        np.testing.assert_array_equal(first[0][k], again[0][k])
-        np.testing.assert_array_equal(first[0][k], fresh[0][k])
-
-
-def test_the_frame_key_changes_with_whatever_decides_the_frame():
-    from pgc.synth.frames import frame_key
-    from pgc.synth.ground_truth import GroundTruth
-    from pgc.types import Camera, Light, Material, Mesh
-
-    mesh = Mesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float), np.array([[0, 1, 2]]))
-    gt = GroundTruth(mesh, mesh, Material("lambertian", {}), Light(np.ones(3)), manifest={"seed": 0})
-    cam = Camera(np.array([[50.0, 0, 16], [0, 50, 16], [0, 0, 1]]), np.eye(3), np.array([0, 0, 3.0]), 32, 32, "c0")
-    renderer = CountingRenderer(type("Inner", (), {"options": None})())
-    v, light = mesh.vertices, Light(np.ones(3))
-    base = frame_key(gt, v, v, [cam], light, 64, 0, 2, "ldsampler", renderer)
-    others = [frame_key(gt, v + 1e-6, v, [cam], light, 64, 0, 2, "ldsampler", renderer),
-              frame_key(gt, v, v, [cam], Light(np.ones(3), rotation_deg=90.0), 64, 0, 2, "ldsampler", renderer),
-              frame_key(gt, v, v, [cam], Light(np.ones(3), np.ones((4, 8, 3), np.float32)), 64, 0, 2, "ldsampler",
-                        renderer),
-              frame_key(gt, v, v, [cam], light, 16, 0, 2, "ldsampler", renderer),
-              frame_key(gt, v, v, [cam], light, 64, 1009, 2, "ldsampler", renderer),
-              frame_key(dataclasses.replace(gt, manifest={"seed": 1}), v, v, [cam], light, 64, 0, 2, "ldsampler",
-                        renderer),
-              frame_key(gt, v, v, [dataclasses.replace(cam, name="c1")], light, 64, 0, 2, "ldsampler", renderer)]
-    assert base == frame_key(gt, v.copy(), v, [cam], Light(np.ones(3)), 64, 0, 2, "ldsampler", renderer)
-    assert len({base, *others}) == 1 + len(others)
-    assert frame_key(dataclasses.replace(gt, manifest=None), v, v, [cam], light, 64, 0, 2, "ldsampler", renderer) is None

@@ -1,17 +1,9 @@
 """Ground truth for new frames: the scene's ground-truth materials on given garment and body vertices,
-rendered from given cameras and lights (novel-pose ground truth on simulated geometry).
-
-A frame of a capture's truth (one read from its folder) is kept in memory under the content key of everything
-that decides it (:func:`frame_key`), for the last :data:`FRAME_MEMO_SIZE` frames: runs that share a frame (every
-motion starts in the capture pose) render it once per process. The memo returns the same arrays a render would:
-Mitsuba's rendering is deterministic for a fixed seed.
-"""
+rendered from given cameras and lights (novel-pose ground truth on simulated geometry)."""
 
 from __future__ import annotations
 
-import hashlib
 import os
-from collections import OrderedDict
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -26,29 +18,6 @@ if TYPE_CHECKING:
     from pgc.roles.scene_renderer import SceneRenderer
 
 DEFAULT_FRAME_SPP = 64
-FRAME_MEMO_SIZE = 8
-"""Frames kept by :func:`render_frames` (about 3.5 MB each: 4 views of 192 px)."""
-_frame_memo: OrderedDict[str, dict[str, np.ndarray]] = OrderedDict()
-
-
-def frame_key(gt: GroundTruth, garment_vertices: np.ndarray, body_vertices: np.ndarray, cameras: list[Camera],
-              light: Light, spp: int, seed: int, gt_samples: int, sampler: str, renderer: SceneRenderer) -> str | None:
-    """The content key of one ground-truth frame: the capture's scene (its ``scene.json``), the vertices, the
-    cameras, the light, the sampling and the renderer (class and options); None for a truth not read from a
-    capture folder (it has no manifest)."""
-    if gt.manifest is None:
-        return None
-    h = hashlib.sha256()
-    options = getattr(renderer, "options", None)
-    h.update(repr((type(renderer).__qualname__, options.model_dump() if hasattr(options, "model_dump") else options,
-                   sorted(gt.manifest.items(), key=str), spp, seed, gt_samples, sampler,
-                   float(light.rotation_deg), [(c.name, c.width, c.height) for c in cameras])).encode())
-    arrays = [garment_vertices, body_vertices, light.radiance] + [m for c in cameras for m in (c.K, c.R, c.t)]
-    if light.envmap is not None:
-        arrays.append(light.envmap)
-    for a in arrays:
-        h.update(np.ascontiguousarray(a, np.float64).tobytes())
-    return h.hexdigest()
 
 
 def _as_sequence(name: str, array: np.ndarray, vertex_count: int) -> np.ndarray:
@@ -92,13 +61,6 @@ def render_frames(scene_dir_or_gt: str | os.PathLike | GroundTruth, garment_vert
     frames = []
     with reporter.stage("render_gt_frames", total=len(gv), spp=spp) as st:
         for t in range(len(gv)):
-            key = frame_key(gt, gv[t], bv[t], cameras, lights[t], spp, seed * 100003 + t * 1009, gt_samples, sampler,
-                            renderer)
-            if key in _frame_memo:
-                _frame_memo.move_to_end(key)
-                frames.append({k: v.copy() for k, v in _frame_memo[key].items()})
-                st.progress(t + 1)
-                continue
             geometry = gt.geometry(gv[t], bv[t])
             scene, labels = renderer.build_scene(geometry, lights[t])
             out: dict[str, list[np.ndarray]] = {"color": [], "alpha": [], "garment_mask": [], "segmentation": []}
@@ -110,10 +72,6 @@ def render_frames(scene_dir_or_gt: str | os.PathLike | GroundTruth, garment_vert
                 out["garment_mask"].append(layers["garment_coverage"])
                 out["segmentation"].append(layers["segmentation"])
             frames.append({k: np.stack(v) for k, v in out.items()})
-            if key is not None:
-                _frame_memo[key] = {k: v.copy() for k, v in frames[-1].items()}
-                while len(_frame_memo) > FRAME_MEMO_SIZE:
-                    _frame_memo.popitem(last=False)
             st.progress(t + 1)
     return frames
 
