@@ -2,8 +2,9 @@
 """Does the capture light let the material fit recover the in-family controls' pgc-sheen parameters?
 
     python benchmarks/bench_capture_light.py --work DIR [--fabrics F ...] [--seeds 0 1] [--lights uniform sky-sun]
-        [--mode truth|pipeline] [--views 6] [--resolution 64] [--spp 16] [--framing body|garment]
-        [--config FILE.toml] [--remove weave fibres body depth] [--starts paper far] [--out FILE.json]
+        [--mode truth|pipeline|linear] [--views 6] [--resolution 64] [--spp 16] [--framing body|garment]
+        [--config FILE.toml] [--remove weave fibres body depth] [--starts paper far truth] [--loss-spp N]
+        [--study-spp N] [--out FILE.json]
 
 For each fabric x seed x capture light: a synthetic capture (``tiny`` preset, overridable views and size) is
 generated into ``DIR`` (kept and reused), then the material is fitted (``stages.material`` of ``--config``
@@ -22,9 +23,11 @@ at the capture's samples, sampler and seeds, with the named differences between 
 fit's forward model removed from the truth: ``weave`` (the weave normal map), ``fibres`` (the control's sparse
 fibres), ``body`` (the skin-coloured body, made the fit's grey occluder albedo), ``depth`` (the truth's path
 length, made the fit's ``max_depth``). With all four removed the truth's renderer is the fit's forward model
-(``path`` against ``prb``: the same estimator's expectation), so a parameter missed then is not identifiable
-from that capture; one missed only when a difference is kept is lost to that mismatch. ``--starts`` fits from
-the paper's initial values (``paper``) and from the other side of the controls' truths (``far``).
+(``path`` against ``prb``: the same estimator's expectation). ``--starts``: the fit's initial values
+(:data:`STARTS`); ``--loss-spp``: the fit's loss at the fitted and at the true parameters (did it reach the
+minimum?). ``--mode linear``: no fit; the Jacobian of the fit's pixels at the truth of the exact scene, the
+Cramér-Rao errors it gives at the capture's noise (identifiability), and the first-order shift of the fit's
+minimum caused by each mismatch kept alone (:func:`linear_study`). Rows are appended to ``--out``.
 """
 
 from __future__ import annotations
