@@ -169,3 +169,57 @@ def test_synth_records_the_sky_sun_light_in_the_capture_and_the_ground_truth(tmp
         assert light.rotation_deg == 0.0
     assert read_capture(out).metadata["capture_light"] == "sky-sun"
     assert read_json(out / "ground_truth" / "light.json", "light.json")["kind"] == "sky-sun"
+
+
+def _bench_capture_light():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_capture_light.py"
+    spec = importlib.util.spec_from_file_location("bench_capture_light", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    return bench
+
+
+@pytest.mark.slow
+def test_the_oracle_capture_with_every_mismatch_removed_is_the_fits_forward_model(
+        tmp_path, default_scene_renderer, default_body_model):
+    """benchmarks/bench_capture_light.py's oracle: with nothing removed it renders the capture again to the bit;
+    with every mismatch removed the truth's scene renders what the material fit's forward model (the PBR
+    renderer with the grey occluder, at the fit's path length) renders, on the fit's pixels, to within the
+    two renders' noise."""
+    pytest.importorskip("mitsuba")
+    from pgc.brdfs.fitdata import fit_light, prepare_views
+    from pgc.config import load
+    from pgc.synth.generate import generate, get_preset
+    from pgc.synth.ground_truth import read_ground_truth
+
+    bench = _bench_capture_light()
+    cfg = load(require_available=False)
+    folder = tmp_path / "knit"
+    capture = generate(folder, get_preset("tiny", views=2, resolution=32, spp=16, framing="garment"),
+                       fabric="knit-sheen", seed=3,
+                       capture_light="sky-sun", renderer=default_scene_renderer, body_model=default_body_model)
+    gt = read_ground_truth(folder)
+    assert gt.normal_map is not None and gt.fibres is not None  # a control with every mismatch present
+    for view, again in zip(capture.views, bench.oracle_views(folder, (), cfg)):
+        np.testing.assert_array_equal(again.extras["linear"], view.extras["linear"])
+
+    spp, depth = 256, cfg.stage("material").max_depth
+    renderer, scene, _, geometry, _ = bench.oracle_scene(folder, bench.MISMATCHES, cfg)
+    assert geometry.normal_map is None and geometry.fibres is None and renderer.options.max_depth == depth
+    pbr = cfg.create("pbr_renderer")
+    assert geometry.skin_albedo == (pbr.options.occluder_albedo,) * 3
+    light = fit_light(capture, "capture").light(gt.light.radiance)
+    fit_renderers = [type(pbr)(pbr.options.model_copy(update={"seed": seed})) for seed in (1, 2)]
+    for fit_view, view in zip(prepare_views(capture, 32), capture.views):
+        inside = fit_view.weight > 0  # the fit's pixels: the eroded garment interior
+        truth = np.stack([renderer.render_color(scene, view.camera, spp, seed, "independent")[0][inside]
+                          for seed in (1, 2)])
+        fit = np.stack([r.render(gt.garment, gt.material, light, view.camera, spp=spp, occluder=gt.body,
+                                 max_depth=depth).color[inside] for r in fit_renderers])
+        # the standard error of the difference of the two means, from each renderer's two seeds
+        error = np.sqrt(sum(np.var(x[0] - x[1], axis=0) / 2 for x in (truth, fit)) / (2 * inside.sum()))
+        assert inside.sum() > 100
+        np.testing.assert_array_less(np.abs(fit.mean((0, 1)) - truth.mean((0, 1))), 4 * error)
