@@ -41,6 +41,12 @@ BAND_SIGMAS = 6.0
 BAND_MIN_PX = 2.0
 INSIDE_WEIGHT = 0.05
 """Weight of the vertices-inside-the-mask term (px^2 per vertex) against the silhouette term."""
+INSIDE_TOLERANCE_PX = 1.0
+"""The vertices-inside term counts a vertex's distance beyond this many pixels outside the person's mask."""
+REACH_WEIGHT = 0.05
+"""Weight of the reach term (px^2 per body-labelled pixel) against the silhouette term."""
+REACH_TOLERANCE_PX = 1.0
+"""The reach term counts a body-labelled pixel's distance beyond this many pixels from the body's silhouette."""
 KEYPOINT_WEIGHT = 0.01
 """Weight of the keypoint term (px^2 per joint)."""
 MIN_SUBTREE_SKIN = 0.08
@@ -115,7 +121,8 @@ def _view_data(view, keypoints: Keypoints | None) -> _ViewData:
     seg = view.segmentation
     mask = view.mask if view.mask is not None else (seg != 0).astype(np.float32)
     person = (mask >= 0.5) | (seg != 0)
-    outside = np.pad(distance_transform_edt(~person), 1)  # 0 beyond the image: nothing is known there
+    outside = np.maximum(distance_transform_edt(~person) - INSIDE_TOLERANCE_PX, 0.0)
+    outside = np.pad(outside, 1)  # 0 beyond the image: nothing is known there
     cam = view.camera
     return _ViewData(cam.name, cam.K, cam.R, cam.t, cam.width, cam.height, np.clip(mask, 0.0, 1.0),
                      seg == BODY_LABEL, torch.as_tensor(outside, dtype=torch.float32), keypoints)
@@ -189,10 +196,11 @@ class _Silhouette:
         self.faces = faces
         self.edges = _edge_faces(faces)
 
-    def loss(self, v: _ViewData, uv: "torch.Tensor", depth: "torch.Tensor", sigma: float) -> tuple["torch.Tensor",
-                                                                                                  float]:
-        """The silhouette loss (mean over the band's pixels, px^2-free: coverage squared) and the IoU of the
-        hard silhouette with the mask."""
+    def loss(self, v: _ViewData, uv: "torch.Tensor", depth: "torch.Tensor", sigma: float
+             ) -> tuple["torch.Tensor", "torch.Tensor", float]:
+        """The silhouette loss (mean over the band's pixels of coverage squared), the reach loss (px^2 per
+        body-labelled pixel: the squared distance, beyond :data:`REACH_TOLERANCE_PX`, of each body-labelled pixel
+        the body does not cover to the body's silhouette) and the IoU of the hard silhouette with the mask."""
         import torch
         from scipy.ndimage import distance_transform_edt
         from scipy.spatial import cKDTree
@@ -220,10 +228,12 @@ class _Silhouette:
         dist_in = distance_transform_edt(covered)
         dist_out = distance_transform_edt(~covered)
         band = np.where(covered, dist_in, dist_out) <= band_px + 0.5
-        ys, xs = np.nonzero(band)
+        unreached = v.body & target & ~covered
+        ys, xs = np.nonzero(band | unreached)
+        zero = uv.sum() * 0.0
         if len(contour) == 0 or len(xs) == 0:
-            return uv.sum() * 0.0, iou
-        # nearest contour edge of each band pixel: through points sampled along the projected edges
+            return zero, zero, iou
+        # nearest contour edge of each pixel: through points sampled along the projected edges
         a, b = p[contour[:, 0]], p[contour[:, 1]]
         steps = np.maximum(np.ceil(np.linalg.norm(b - a, axis=1) * 2).astype(int), 1) + 1
         edge_of = np.repeat(np.arange(len(contour)), steps)
@@ -237,13 +247,17 @@ class _Silhouette:
         s = ((q - ea) * ab).sum(-1) / (ab * ab).sum(-1).clamp_min(1e-9)
         closest = ea + s.clamp(0.0, 1.0)[:, None] * ab
         dist = torch.sqrt(((q - closest) ** 2).sum(-1) + 1e-9)
+        in_band = torch.as_tensor(band[ys, xs])
         signed = torch.where(torch.as_tensor(covered[ys, xs]), dist, -dist)
         soft = torch.sigmoid(signed / sigma)
         m = torch.as_tensor(v.mask[ys, xs], dtype=uv.dtype)
         diff = soft - m
         is_body = torch.as_tensor(v.body[ys, xs])
         per_pixel = torch.where(is_body, diff * diff, torch.relu(diff) ** 2)
-        return per_pixel.mean(), iou
+        silhouette = per_pixel[in_band].mean() if bool(in_band.any()) else zero
+        far = torch.relu(dist - REACH_TOLERANCE_PX) ** 2
+        reach = torch.where(torch.as_tensor(unreached[ys, xs]), far, 0.0).sum() / max(int((v.body & target).sum()), 1)
+        return silhouette, reach, iou
 
 
 def _sample_outside(outside: "torch.Tensor", uv: "torch.Tensor") -> "torch.Tensor":
@@ -340,13 +354,15 @@ def _fit(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_n
                 verts, joints = out.vertices[0], out.joints[0]
                 loss_sil = torch.zeros((), dtype=dtype)
                 loss_in = torch.zeros((), dtype=dtype)
+                loss_reach = torch.zeros((), dtype=dtype)
                 loss_kp = torch.zeros((), dtype=dtype)
                 iou = []
                 for v, (K, R, t) in zip(views, cams):
                     pc = verts @ R.T + t
                     uv = (pc @ K.T)[:, :2] / pc[:, 2:3].clamp_min(1e-3)
-                    l, j = silhouette.loss(v, uv, pc[:, 2], sigma)
+                    l, r, j = silhouette.loss(v, uv, pc[:, 2], sigma)
                     loss_sil = loss_sil + sigma * l
+                    loss_reach = loss_reach + r
                     iou.append(j)
                     loss_in = loss_in + (_sample_outside(v.outside, uv) ** 2).mean()
                     if v.keypoints is not None:
@@ -356,7 +372,7 @@ def _fit(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_n
                         conf = torch.as_tensor(v.keypoints.confidence, dtype=dtype)
                         err = ((juv - torch.as_tensor(v.keypoints.xy, dtype=dtype)) ** 2).sum(-1)
                         loss_kp = loss_kp + (conf * err).sum() / conf.sum().clamp_min(1e-6)
-                loss = (loss_sil + INSIDE_WEIGHT * loss_in + KEYPOINT_WEIGHT * loss_kp) / len(views) \
+                loss = (loss_sil + INSIDE_WEIGHT * loss_in + REACH_WEIGHT * loss_reach + KEYPOINT_WEIGHT * loss_kp) / len(views) \
                     + settings.pose_prior * 1e-3 * (angles ** 2).sum()
                 loss.backward()
                 opt.step()
