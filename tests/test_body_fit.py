@@ -97,7 +97,7 @@ def test_reach_term_pulls_the_body_towards_the_body_pixels_it_does_not_cover():
     reach.backward()
     assert uv.grad[0, 0] < 0 and np.allclose(uv.grad[1:].numpy(), 0.0)  # the corner vertex is drawn right
     faces, view, uv, depth = _octahedron_view((8, 16))  # a body pixel the diamond covers: nothing to reach
-    assert float(_Silhouette(faces).loss(view, uv, depth, 0.3)[1]) == 0.0
+    assert float(_Silhouette(faces).loss(view, uv, depth, 0.3)[1].detach()) == 0.0
 
 
 def test_vertices_inside_term_tolerates_a_pixel_outside_the_mask():
