@@ -52,6 +52,8 @@ KEYPOINT_WEIGHT = 0.01
 MIN_SUBTREE_SKIN = 0.08
 """Joints that, with their descendants, skin less than this fraction of the vertices (Anny's fingers, thumbs, feet
 and toes) are not posed: at a few pixels across, their silhouette does not fix their rotation."""
+PLACEMENT_ROUNDS = 10
+"""Most rounds of the start translation's centroid matching (:func:`_placed_translation`)."""
 TRANSLATION_SCALE = 0.1
 """Metres per unit of the optimised translation (so one learning rate suits angles, shape and position)."""
 
@@ -168,25 +170,66 @@ def posed_joints(body: BodyModel) -> np.ndarray:
     return subtree >= MIN_SUBTREE_SKIN
 
 
-def _translation_init(views: list[_ViewData]) -> np.ndarray:
-    """The point nearest the rays through the centroids of the views' masks (least squares), metres."""
+def _centroid_point(views: list[_ViewData], centroids: list[np.ndarray | None]) -> np.ndarray:
+    """The point nearest the rays through the views' pixel ``centroids`` (least squares; None: the view has none),
+    metres."""
     A = np.zeros((3, 3))
     b = np.zeros(3)
-    for v in views:
-        ys, xs = np.nonzero(v.mask >= 0.5)
-        if len(xs) == 0:
+    for v, c in zip(views, centroids):
+        if c is None:
             continue
-        pix = np.array([xs.mean() + 0.5, ys.mean() + 0.5, 1.0])
-        d = v.R.T @ np.linalg.solve(v.K, pix)
+        d = v.R.T @ np.linalg.solve(v.K, np.array([c[0], c[1], 1.0]))
         d /= np.linalg.norm(d)
-        c = -v.R.T @ v.t
         P = np.eye(3) - np.outer(d, d)
         A += P
-        b += P @ c
+        b += P @ (-v.R.T @ v.t)
     if np.linalg.matrix_rank(A) < 3:
         raise PGCDataError("body fit: the masks' centroids do not locate the person in 3D (one view, or parallel "
                            "rays); use views from several directions")
     return np.linalg.solve(A, b)
+
+
+def _pixel_centroid(covered: np.ndarray) -> np.ndarray | None:
+    """(x, y) pixel-centre centroid of a boolean image, None when it is empty."""
+    ys, xs = np.nonzero(covered)
+    return np.array([xs.mean() + 0.5, ys.mean() + 0.5]) if len(xs) else None
+
+
+def _translation_init(views: list[_ViewData]) -> np.ndarray:
+    """The point nearest the rays through the centroids of the views' masks (least squares), metres."""
+    return _centroid_point(views, [_pixel_centroid(v.mask >= 0.5) for v in views])
+
+
+def _coverage(uv: np.ndarray, depth: np.ndarray, faces: np.ndarray, width: int, height: int) -> np.ndarray:
+    """(H, W) bool: the pixel centres a mesh covers, projected to ``uv`` (V, 2) px with camera depths (V,) (faces
+    with a vertex behind the camera are left out)."""
+    from pgc.geometry.raster import covered_pixels
+
+    covered = np.zeros(height * width, bool)
+    for _, pix, _ in covered_pixels(uv[faces[np.all(depth[faces] > 1e-3, axis=1)]], width, height):
+        covered[pix] = True
+    return covered.reshape(height, width)
+
+
+def _placed_translation(views: list[_ViewData], vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """The translation (metres) that puts a body's ``vertices`` where the masks are: its visible silhouette's
+    centroids brought onto the masks' centroids (both cut by the image borders alike, so a framing that shows part
+    of the body places it right), by :data:`PLACEMENT_ROUNDS` fixed-point rounds from its box centre."""
+    target = _translation_init(views)
+    shift = target - 0.5 * (vertices.min(0) + vertices.max(0))
+    for _ in range(PLACEMENT_ROUNDS):
+        centroids = []
+        for v in views:
+            pc = (vertices + shift) @ v.R.T + v.t
+            uv = (pc @ v.K.T)[:, :2] / np.maximum(pc[:, 2:3], 1e-3)
+            centroids.append(_pixel_centroid(_coverage(uv, pc[:, 2], faces, v.width, v.height)))
+        if any(c is None for c in centroids):
+            break
+        step = target - _centroid_point(views, centroids)
+        shift = shift + step
+        if np.linalg.norm(step) < 1e-3:
+            break
+    return shift
 
 
 class _Silhouette:
@@ -205,16 +248,8 @@ class _Silhouette:
         from scipy.ndimage import distance_transform_edt
         from scipy.spatial import cKDTree
 
-        from pgc.geometry.raster import covered_pixels
-
         p = uv.detach().double().numpy()
-        z = depth.detach().double().numpy()
-        h, w = v.height, v.width
-        front_faces = np.all(z[self.faces] > 1e-3, axis=1)
-        covered = np.zeros(h * w, bool)
-        for _, pix, _ in covered_pixels(p[self.faces[front_faces]], w, h):
-            covered[pix] = True
-        covered = covered.reshape(h, w)
+        covered = _coverage(p, depth.detach().double().numpy(), self.faces, v.width, v.height)
         target = v.mask >= 0.5
         union = (covered | target).sum()
         iou = float((covered & target).sum() / union) if union else 1.0
@@ -322,10 +357,10 @@ def _fit(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_n
     with torch.no_grad():
         rest = body.forward_torch({k: default[i:i + 1] for i, k in enumerate(params)},
                                   torch.eye(3, dtype=dtype).expand(1, len(names), 3, 3), torch.zeros(1, 3, dtype=dtype))
-    rest_v = rest.vertices[0].double().numpy()
-    centre = 0.5 * (rest_v.min(0) + rest_v.max(0))
-    offset = torch.tensor((_translation_init(views) - centre) / TRANSLATION_SCALE, dtype=dtype, requires_grad=True)
-    silhouette = _Silhouette(np.asarray(body.faces))
+    faces = np.asarray(body.faces)
+    start_shift = _placed_translation(views, rest.vertices[0].double().numpy(), faces)
+    offset = torch.tensor(start_shift / TRANSLATION_SCALE, dtype=dtype, requires_grad=True)
+    silhouette = _Silhouette(faces)
     cams = [(torch.tensor(v.K, dtype=dtype), torch.tensor(v.R, dtype=dtype), torch.tensor(v.t, dtype=dtype))
             for v in views]
     opt = torch.optim.Adam([shape_logit, angles, offset], lr=settings.learning_rate)
