@@ -56,6 +56,27 @@ def test_translation_init_finds_the_point_the_masks_are_centred_on():
     assert np.allclose(_translation_init(views), point, atol=0.02)
 
 
+def test_start_translation_places_a_body_the_views_show_in_part():
+    """Cameras that frame the top of a body (their images cut it at the bottom): the masks' centroids lie high, and
+    matching the body's visible silhouette to them, cut alike, finds its translation."""
+    from pgc.body.fit import _coverage, _placed_translation, _translation_init, _view_data
+    from pgc.testing.capture_scenes import dome_cameras
+    from pgc.types import View
+
+    pts = np.array([[0.2, 0.9, 0], [-0.2, 0.9, 0], [0, 1.8, 0], [0, 0, 0], [0, 0.9, 0.15], [0, 0.9, -0.15]])
+    faces = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+    shift = np.array([0.05, 0.02, -0.04])
+    views = []
+    for cam in dome_cameras(6, 96, radius=3.0, target_y=0.9, fov_y_deg=45.0):
+        top = cam.cropped(0, 0, 96, 48)  # the upper half of each image
+        pc = (pts + shift) @ top.R.T + top.t
+        cover = _coverage((pc @ top.K.T)[:, :2] / pc[:, 2:3], pc[:, 2], faces, 96, 48).astype(np.uint8)
+        views.append(_view_data(View(top, np.zeros((48, 96, 3)), segmentation=cover), None))
+    centre = 0.5 * (pts.min(0) + pts.max(0))
+    assert abs(_translation_init(views) - centre - shift)[1] > 0.2  # the masks' centroids alone: far too high
+    assert np.allclose(_placed_translation(views, pts, faces), shift, atol=0.01)
+
+
 def test_vertex_error_per_vertex_and_under_the_garment():
     from pgc.body.fit import vertex_error
 

@@ -7,11 +7,14 @@ Per view (every length in pixels of that view):
   rasterised body); at ``sigma`` about 1/4 px it matches a box-filtered edge, the capture mask's coverage;
 - pixels labelled body must be covered as much as the mask says: ``(s - mask)^2``; every other pixel may be
   covered at most that much: ``relu(s - mask)^2`` (a garment may hide body, never the background);
-- every vertex projects inside the person's mask: the squared distance transform of the mask's outside;
+- every vertex projects inside the person's mask: the squared distance, beyond a pixel, to the mask;
+- reach: every body-labelled pixel the body does not cover pulls the body's silhouette to it (its squared distance,
+  beyond a pixel, to the nearest contour edge), long-range where the silhouette term saturates;
 - keypoints (:mod:`pgc.io.keypoints`): the squared pixel distance of the projected joints, by confidence;
 - a prior on the squared joint angles keeps what no view constrains at rest.
 Three phases narrow ``sigma`` (:data:`PHASES`; the silhouette term is scaled by ``sigma`` so its gradient keeps its
-size) and the band of pixels around the edge; every joint that moves enough skin is posed (those that with their
+size) and the band of pixels around the edge; the start translation brings the body's visible silhouette onto the
+masks (:func:`_placed_translation`); every joint that moves enough skin is posed (those that with their
 descendants skin less than :data:`MIN_SUBTREE_SKIN` of the vertices, hands' fingers and feet, stay at rest); the last phase stops when the loss no
 longer falls (``tolerance``). Docs: docs/body.md, "Body fit".
 """
