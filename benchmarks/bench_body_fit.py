@@ -2,15 +2,17 @@
 """Time against vertex error of the body fit (``pgc body fit``, :func:`pgc.body.fit.fit_body`).
 
     python benchmarks/bench_body_fit.py [--seeds 0 1 2 3 4] [--scenes tiny default] [--sweep] [--out FILE]
-    python benchmarks/bench_body_fit.py --capture DIR [DIR ...]     # synthetic captures with ground_truth/
+    python benchmarks/bench_body_fit.py --capture DIR [DIR ...]     # pgc synth captures (with ground_truth/)
 
 Scenes (made in-process, :func:`pgc.testing.body_scenes.anny_capture`: an Anny body of a per-seed shape and pose,
 :func:`~pgc.testing.body_scenes.random_body`, in a tight and a loose shirt, masks and labels from the scene
 renderer's exact layers): ``tiny`` 6 views at 64 px (the tiny synth preset's), ``default`` 16 views at 192 px
 (the default preset's image size) of which the fit uses its ``views``. ``--sweep`` also varies the settings on
-the first seed (views used, iterations, keypoints from the true joints or not). Per fit: wall seconds, CPU
-seconds of the process, steps run, and the vertex error (mean, max; under the garment and elsewhere). Records
-follow docs/bench.md, "Record schema"; the table is printed.
+the first seed (views used, iterations, keypoints from the true joints or not). ``--capture`` fits ``pgc synth``
+captures instead (the scene named by the capture's image size and view count, the garment by its kind, fit and
+looseness from the capture's metadata). Per fit: wall seconds, CPU seconds of the process, steps run, the
+silhouette IoU and the vertex error (mean, max; under the garment and elsewhere). Records follow docs/bench.md,
+"Record schema"; the table is printed.
 """
 
 from __future__ import annotations
@@ -80,14 +82,14 @@ def main() -> None:
         e = rec["errors"]
         print(f"| {scene} | {seed} | {garment} | {settings.views} | {settings.iterations} "
               f"| {'yes' if keypoints else 'no'} | {result['steps']} | {result['seconds']:.1f} "
-              f"| {result['cpu_seconds']:.1f} | {1000 * e['mean_m']:.1f} | {1000 * e['max_m']:.1f} "
+              f"| {result['cpu_seconds']:.1f} | {result['silhouette_iou']:.3f} | {1000 * e['mean_m']:.1f} | {1000 * e['max_m']:.1f} "
               f"| {1000 * (e['under_garment_mean_m'] or float('nan')):.1f} | "
               f"{1000 * e['exposed_mean_m']:.1f} |", flush=True)
         args.out.write_text(json.dumps(records, indent=1))
 
-    print("| scene | seed | garment | views | iterations | keypoints | steps | wall s | CPU s | mean mm | max mm "
-          "| under garment mean mm | exposed mean mm |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    print("| scene | seed | garment | views | iterations | keypoints | steps | wall s | CPU s | silhouette IoU "
+          "| mean mm | max mm | under garment mean mm | exposed mean mm |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     if args.capture:
         from pgc.io.capture import read_capture
         from pgc.io.mesh import read_mesh
@@ -97,9 +99,10 @@ def main() -> None:
             truth = read_mesh(folder / "ground_truth" / "body.obj")
             cloth = read_mesh(folder / "ground_truth" / "garment.obj")
             meta = capture.metadata
-            record(meta.get("preset", {}).get("name", folder.name) if isinstance(meta.get("preset"), dict) else
-                   folder.name, meta.get("seed"), meta.get("garment", "?"), base, False,
-                   run_fit(capture, body, truth, cloth, None, base))
+            preset = meta.get("preset") if isinstance(meta.get("preset"), dict) else {}
+            scene = f"synth {capture.views[0].camera.width} px x {len(capture.views)}"
+            garment = f"{meta.get('garment', '?')} {preset.get('fit', '?')} {1000 * meta.get('looseness', 0):.0f} mm"
+            record(scene, meta.get("seed"), garment, base, False, run_fit(capture, body, truth, cloth, None, base))
         return
     from pgc.synth.render import scene_renderer
     from pgc.testing.body_scenes import anny_capture, random_body

@@ -7,11 +7,14 @@ Per view (every length in pixels of that view):
   rasterised body); at ``sigma`` about 1/4 px it matches a box-filtered edge, the capture mask's coverage;
 - pixels labelled body must be covered as much as the mask says: ``(s - mask)^2``; every other pixel may be
   covered at most that much: ``relu(s - mask)^2`` (a garment may hide body, never the background);
-- every vertex projects inside the person's mask: the squared distance transform of the mask's outside;
+- every vertex projects inside the person's mask: the squared distance, beyond a pixel, to the mask;
+- reach: every body-labelled pixel the body does not cover pulls the body's silhouette to it (its squared distance,
+  beyond a pixel, to the nearest contour edge), long-range where the silhouette term saturates;
 - keypoints (:mod:`pgc.io.keypoints`): the squared pixel distance of the projected joints, by confidence;
 - a prior on the squared joint angles keeps what no view constrains at rest.
 Three phases narrow ``sigma`` (:data:`PHASES`; the silhouette term is scaled by ``sigma`` so its gradient keeps its
-size) and the band of pixels around the edge; every joint that moves enough skin is posed (those that with their
+size) and the band of pixels around the edge; the start translation brings the body's visible silhouette onto the
+masks (:func:`_placed_translation`); every joint that moves enough skin is posed (those that with their
 descendants skin less than :data:`MIN_SUBTREE_SKIN` of the vertices, hands' fingers and feet, stay at rest); the last phase stops when the loss no
 longer falls (``tolerance``). Docs: docs/body.md, "Body fit".
 """
@@ -41,11 +44,19 @@ BAND_SIGMAS = 6.0
 BAND_MIN_PX = 2.0
 INSIDE_WEIGHT = 0.05
 """Weight of the vertices-inside-the-mask term (px^2 per vertex) against the silhouette term."""
+INSIDE_TOLERANCE_PX = 1.0
+"""The vertices-inside term counts a vertex's distance beyond this many pixels outside the person's mask."""
+REACH_WEIGHT = 0.05
+"""Weight of the reach term (px^2 per body-labelled pixel) against the silhouette term."""
+REACH_TOLERANCE_PX = 1.0
+"""The reach term counts a body-labelled pixel's distance beyond this many pixels from the body's silhouette."""
 KEYPOINT_WEIGHT = 0.01
 """Weight of the keypoint term (px^2 per joint)."""
 MIN_SUBTREE_SKIN = 0.08
 """Joints that, with their descendants, skin less than this fraction of the vertices (Anny's fingers, thumbs, feet
 and toes) are not posed: at a few pixels across, their silhouette does not fix their rotation."""
+PLACEMENT_ROUNDS = 10
+"""Most rounds of the start translation's centroid matching (:func:`_placed_translation`)."""
 TRANSLATION_SCALE = 0.1
 """Metres per unit of the optimised translation (so one learning rate suits angles, shape and position)."""
 
@@ -115,7 +126,8 @@ def _view_data(view, keypoints: Keypoints | None) -> _ViewData:
     seg = view.segmentation
     mask = view.mask if view.mask is not None else (seg != 0).astype(np.float32)
     person = (mask >= 0.5) | (seg != 0)
-    outside = np.pad(distance_transform_edt(~person), 1)  # 0 beyond the image: nothing is known there
+    outside = np.maximum(distance_transform_edt(~person) - INSIDE_TOLERANCE_PX, 0.0)
+    outside = np.pad(outside, 1)  # 0 beyond the image: nothing is known there
     cam = view.camera
     return _ViewData(cam.name, cam.K, cam.R, cam.t, cam.width, cam.height, np.clip(mask, 0.0, 1.0),
                      seg == BODY_LABEL, torch.as_tensor(outside, dtype=torch.float32), keypoints)
@@ -161,25 +173,66 @@ def posed_joints(body: BodyModel) -> np.ndarray:
     return subtree >= MIN_SUBTREE_SKIN
 
 
-def _translation_init(views: list[_ViewData]) -> np.ndarray:
-    """The point nearest the rays through the centroids of the views' masks (least squares), metres."""
+def _centroid_point(views: list[_ViewData], centroids: list[np.ndarray | None]) -> np.ndarray:
+    """The point nearest the rays through the views' pixel ``centroids`` (least squares; None: the view has none),
+    metres."""
     A = np.zeros((3, 3))
     b = np.zeros(3)
-    for v in views:
-        ys, xs = np.nonzero(v.mask >= 0.5)
-        if len(xs) == 0:
+    for v, c in zip(views, centroids):
+        if c is None:
             continue
-        pix = np.array([xs.mean() + 0.5, ys.mean() + 0.5, 1.0])
-        d = v.R.T @ np.linalg.solve(v.K, pix)
+        d = v.R.T @ np.linalg.solve(v.K, np.array([c[0], c[1], 1.0]))
         d /= np.linalg.norm(d)
-        c = -v.R.T @ v.t
         P = np.eye(3) - np.outer(d, d)
         A += P
-        b += P @ c
+        b += P @ (-v.R.T @ v.t)
     if np.linalg.matrix_rank(A) < 3:
         raise PGCDataError("body fit: the masks' centroids do not locate the person in 3D (one view, or parallel "
                            "rays); use views from several directions")
     return np.linalg.solve(A, b)
+
+
+def _pixel_centroid(covered: np.ndarray) -> np.ndarray | None:
+    """(x, y) pixel-centre centroid of a boolean image, None when it is empty."""
+    ys, xs = np.nonzero(covered)
+    return np.array([xs.mean() + 0.5, ys.mean() + 0.5]) if len(xs) else None
+
+
+def _translation_init(views: list[_ViewData]) -> np.ndarray:
+    """The point nearest the rays through the centroids of the views' masks (least squares), metres."""
+    return _centroid_point(views, [_pixel_centroid(v.mask >= 0.5) for v in views])
+
+
+def _coverage(uv: np.ndarray, depth: np.ndarray, faces: np.ndarray, width: int, height: int) -> np.ndarray:
+    """(H, W) bool: the pixel centres a mesh covers, projected to ``uv`` (V, 2) px with camera depths (V,) (faces
+    with a vertex behind the camera are left out)."""
+    from pgc.geometry.raster import covered_pixels
+
+    covered = np.zeros(height * width, bool)
+    for _, pix, _ in covered_pixels(uv[faces[np.all(depth[faces] > 1e-3, axis=1)]], width, height):
+        covered[pix] = True
+    return covered.reshape(height, width)
+
+
+def _placed_translation(views: list[_ViewData], vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """The translation (metres) that puts a body's ``vertices`` where the masks are: its visible silhouette's
+    centroids brought onto the masks' centroids (both cut by the image borders alike, so a framing that shows part
+    of the body places it right), by :data:`PLACEMENT_ROUNDS` fixed-point rounds from its box centre."""
+    target = _translation_init(views)
+    shift = target - 0.5 * (vertices.min(0) + vertices.max(0))
+    for _ in range(PLACEMENT_ROUNDS):
+        centroids = []
+        for v in views:
+            pc = (vertices + shift) @ v.R.T + v.t
+            uv = (pc @ v.K.T)[:, :2] / np.maximum(pc[:, 2:3], 1e-3)
+            centroids.append(_pixel_centroid(_coverage(uv, pc[:, 2], faces, v.width, v.height)))
+        if any(c is None for c in centroids):
+            break
+        step = target - _centroid_point(views, centroids)
+        shift = shift + step
+        if np.linalg.norm(step) < 1e-3:
+            break
+    return shift
 
 
 class _Silhouette:
@@ -189,24 +242,17 @@ class _Silhouette:
         self.faces = faces
         self.edges = _edge_faces(faces)
 
-    def loss(self, v: _ViewData, uv: "torch.Tensor", depth: "torch.Tensor", sigma: float) -> tuple["torch.Tensor",
-                                                                                                  float]:
-        """The silhouette loss (mean over the band's pixels, px^2-free: coverage squared) and the IoU of the
-        hard silhouette with the mask."""
+    def loss(self, v: _ViewData, uv: "torch.Tensor", depth: "torch.Tensor", sigma: float
+             ) -> tuple["torch.Tensor", "torch.Tensor", float]:
+        """The silhouette loss (mean over the band's pixels of coverage squared), the reach loss (px^2 per
+        body-labelled pixel: the squared distance, beyond :data:`REACH_TOLERANCE_PX`, of each body-labelled pixel
+        the body does not cover to the body's silhouette) and the IoU of the hard silhouette with the mask."""
         import torch
         from scipy.ndimage import distance_transform_edt
         from scipy.spatial import cKDTree
 
-        from pgc.geometry.raster import covered_pixels
-
         p = uv.detach().double().numpy()
-        z = depth.detach().double().numpy()
-        h, w = v.height, v.width
-        front_faces = np.all(z[self.faces] > 1e-3, axis=1)
-        covered = np.zeros(h * w, bool)
-        for _, pix, _ in covered_pixels(p[self.faces[front_faces]], w, h):
-            covered[pix] = True
-        covered = covered.reshape(h, w)
+        covered = _coverage(p, depth.detach().double().numpy(), self.faces, v.width, v.height)
         target = v.mask >= 0.5
         union = (covered | target).sum()
         iou = float((covered & target).sum() / union) if union else 1.0
@@ -220,10 +266,12 @@ class _Silhouette:
         dist_in = distance_transform_edt(covered)
         dist_out = distance_transform_edt(~covered)
         band = np.where(covered, dist_in, dist_out) <= band_px + 0.5
-        ys, xs = np.nonzero(band)
+        unreached = v.body & target & ~covered
+        ys, xs = np.nonzero(band | unreached)
+        zero = uv.sum() * 0.0
         if len(contour) == 0 or len(xs) == 0:
-            return uv.sum() * 0.0, iou
-        # nearest contour edge of each band pixel: through points sampled along the projected edges
+            return zero, zero, iou
+        # nearest contour edge of each pixel: through points sampled along the projected edges
         a, b = p[contour[:, 0]], p[contour[:, 1]]
         steps = np.maximum(np.ceil(np.linalg.norm(b - a, axis=1) * 2).astype(int), 1) + 1
         edge_of = np.repeat(np.arange(len(contour)), steps)
@@ -237,13 +285,17 @@ class _Silhouette:
         s = ((q - ea) * ab).sum(-1) / (ab * ab).sum(-1).clamp_min(1e-9)
         closest = ea + s.clamp(0.0, 1.0)[:, None] * ab
         dist = torch.sqrt(((q - closest) ** 2).sum(-1) + 1e-9)
+        in_band = torch.as_tensor(band[ys, xs])
         signed = torch.where(torch.as_tensor(covered[ys, xs]), dist, -dist)
         soft = torch.sigmoid(signed / sigma)
         m = torch.as_tensor(v.mask[ys, xs], dtype=uv.dtype)
         diff = soft - m
         is_body = torch.as_tensor(v.body[ys, xs])
         per_pixel = torch.where(is_body, diff * diff, torch.relu(diff) ** 2)
-        return per_pixel.mean(), iou
+        silhouette = per_pixel[in_band].mean() if bool(in_band.any()) else zero
+        far = torch.relu(dist - REACH_TOLERANCE_PX) ** 2
+        reach = torch.where(torch.as_tensor(unreached[ys, xs]), far, 0.0).sum() / max(int((v.body & target).sum()), 1)
+        return silhouette, reach, iou
 
 
 def _sample_outside(outside: "torch.Tensor", uv: "torch.Tensor") -> "torch.Tensor":
@@ -308,10 +360,10 @@ def _fit(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_n
     with torch.no_grad():
         rest = body.forward_torch({k: default[i:i + 1] for i, k in enumerate(params)},
                                   torch.eye(3, dtype=dtype).expand(1, len(names), 3, 3), torch.zeros(1, 3, dtype=dtype))
-    rest_v = rest.vertices[0].double().numpy()
-    centre = 0.5 * (rest_v.min(0) + rest_v.max(0))
-    offset = torch.tensor((_translation_init(views) - centre) / TRANSLATION_SCALE, dtype=dtype, requires_grad=True)
-    silhouette = _Silhouette(np.asarray(body.faces))
+    faces = np.asarray(body.faces)
+    start_shift = _placed_translation(views, rest.vertices[0].double().numpy(), faces)
+    offset = torch.tensor(start_shift / TRANSLATION_SCALE, dtype=dtype, requires_grad=True)
+    silhouette = _Silhouette(faces)
     cams = [(torch.tensor(v.K, dtype=dtype), torch.tensor(v.R, dtype=dtype), torch.tensor(v.t, dtype=dtype))
             for v in views]
     opt = torch.optim.Adam([shape_logit, angles, offset], lr=settings.learning_rate)
@@ -340,13 +392,15 @@ def _fit(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_n
                 verts, joints = out.vertices[0], out.joints[0]
                 loss_sil = torch.zeros((), dtype=dtype)
                 loss_in = torch.zeros((), dtype=dtype)
+                loss_reach = torch.zeros((), dtype=dtype)
                 loss_kp = torch.zeros((), dtype=dtype)
                 iou = []
                 for v, (K, R, t) in zip(views, cams):
                     pc = verts @ R.T + t
                     uv = (pc @ K.T)[:, :2] / pc[:, 2:3].clamp_min(1e-3)
-                    l, j = silhouette.loss(v, uv, pc[:, 2], sigma)
+                    l, r, j = silhouette.loss(v, uv, pc[:, 2], sigma)
                     loss_sil = loss_sil + sigma * l
+                    loss_reach = loss_reach + r
                     iou.append(j)
                     loss_in = loss_in + (_sample_outside(v.outside, uv) ** 2).mean()
                     if v.keypoints is not None:
@@ -356,7 +410,7 @@ def _fit(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_n
                         conf = torch.as_tensor(v.keypoints.confidence, dtype=dtype)
                         err = ((juv - torch.as_tensor(v.keypoints.xy, dtype=dtype)) ** 2).sum(-1)
                         loss_kp = loss_kp + (conf * err).sum() / conf.sum().clamp_min(1e-6)
-                loss = (loss_sil + INSIDE_WEIGHT * loss_in + KEYPOINT_WEIGHT * loss_kp) / len(views) \
+                loss = (loss_sil + INSIDE_WEIGHT * loss_in + REACH_WEIGHT * loss_reach + KEYPOINT_WEIGHT * loss_kp) / len(views) \
                     + settings.pose_prior * 1e-3 * (angles ** 2).sum()
                 loss.backward()
                 opt.step()
