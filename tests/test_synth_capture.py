@@ -406,3 +406,21 @@ def test_three_seeds_give_three_bodies_each_clothed_without_penetration(tmp_path
         assert gt.manifest["garment_gap_m"]["min"] > 0.02  # the tiny preset's loose tee: 3 cm looseness
         heights.append(body.height)
     assert len({round(h, 3) for h in heights}) == 3, heights
+
+
+def test_the_detail_height_is_finite_beside_a_degenerate_boundary_loop():
+    """A boundary loop of zero length (coincident vertices, seen on a loose dress) has no band to rib: it is
+    skipped, not divided by its zero rib period (that made 43992 detail vertices NaN)."""
+    from pgc.synth.detail import DETAILS, DetailField
+    from pgc.types import Mesh
+
+    xs, ys = np.meshgrid(np.linspace(-0.2, 0.2, 9), np.linspace(0.8, 1.4, 13))
+    grid = np.stack([xs.ravel(), ys.ravel(), np.full(xs.size, 0.1)], axis=1)
+    quads = [(r * 9 + c, r * 9 + c + 1, (r + 1) * 9 + c) for r in range(12) for c in range(8)] + \
+            [(r * 9 + c + 1, (r + 1) * 9 + c + 1, (r + 1) * 9 + c) for r in range(12) for c in range(8)]
+    point = np.full((3, 3), [0.0, 1.0, 0.3])  # a triangle whose corners coincide: a loop of zero length
+    garment = Mesh(np.concatenate([grid, point]), np.array(quads + [(len(grid), len(grid) + 1, len(grid) + 2)]))
+    field = DetailField(garment, DETAILS["relief"], seed=0)
+    points = np.concatenate([grid, point[:1] + [0.0, 0.0, 0.001]])  # one beside the degenerate loop
+    heights = field.height(points, np.tile([0.0, 0.0, 1.0], (len(points), 1)))
+    assert np.isfinite(heights).all() and (heights >= 0).all()

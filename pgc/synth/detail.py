@@ -102,6 +102,8 @@ class DetailField:
             p = v[np.append(loop, loop[0])]
             seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
             length = float(seg.sum())
+            if length < spec.band_rib_period:  # a degenerate loop (coincident vertices): no band to rib
+                continue
             n = max(int(np.ceil(length / 0.001)), 8)
             s = np.linspace(0, length, n, endpoint=False)
             cum = np.concatenate([[0.0], np.cumsum(seg)])
