@@ -13,13 +13,14 @@ from pgc.sweep.work import Unit, plan
 
 
 def records_of(sweep: Sweep, units: list[Unit], results: dict[str, Any], failed: dict[str, str]) -> list[dict]:
-    """One record per unit, light and variant (per unit when the sweep has no 'eval'); a unit whose task failed
-    gives one record with ``failed`` and no metrics."""
+    """One record per unit, evaluation mode, light and variant (per unit when the sweep has no 'eval'); a unit
+    whose asset or run task failed gives one record with ``failed`` and no metrics, a failed mode task one such
+    record for its mode."""
     out = []
     for u in units:
         s = u.scene.synth or {}
         base = {"sweep": sweep.name, "scene": u.scene.name, "configuration": u.configuration.name, "motion": u.motion,
-                "light": None, "variant": None, **{k: s.get(k) for k in SCENE_RECORD_FIELDS},
+                "light": None, "mode": None, "variant": None, **{k: s.get(k) for k in SCENE_RECORD_FIELDS},
                 "capture": u.capture}
         bad = next((failed[k] for k in (u.asset_task, u.run_task) if k in failed), None)
         if bad is not None:
@@ -30,11 +31,17 @@ def records_of(sweep: Sweep, units: list[Unit], results: dict[str, Any], failed:
         base |= {"brdf": asset["brdf"], "figures": asset["figures"], "asset": asset["asset"],
                  "run": run["run"] if run else None,
                  "seconds": {"reconstruct": asset["seconds"], **(run["seconds"] if run else {})}}
-        if run and run["metrics"]:
-            out += [base | {"light": light, "variant": v, "metrics": m}
-                    for light, per_variant in run["metrics"].items() for v, m in per_variant.items()]
-        else:
+        if not u.mode_tasks or not (run and run["metrics"]):
             out.append(base | {"metrics": dict(asset["figures"])})
+            continue
+        for mode, task in u.mode_tasks.items():
+            if task in failed:
+                out.append(base | {"mode": mode, "metrics": {}, "failed": failed[task]})
+                continue
+            done = results[task]
+            seconds = base["seconds"] | (done["seconds"] if task != u.run_task else {})
+            out += [base | {"light": light, "mode": mode, "variant": v, "metrics": m, "seconds": seconds}
+                    for light, per_variant in done["metrics"].items() for v, m in per_variant.items()]
     return out
 
 

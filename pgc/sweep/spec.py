@@ -21,7 +21,7 @@ from pgc.io.limits import read_toml
 
 STEPS = ("reconstruct", "animate", "render", "eval")
 """The steps in pipeline order; a sweep runs a prefix of them."""
-SWEEP_KEYS = {"name", "base", "config", "steps", "motions", "lights"}
+SWEEP_KEYS = {"name", "base", "config", "steps", "motions", "lights", "modes", "holdout_every"}
 SYNTH_KEYS = {"preset", "garment", "fabric", "seed", "framing", "detail", "fit", "looseness"}
 SCENE_KEYS = SYNTH_KEYS | {"capture"}
 NUMERIC_KEYS = ("seed", "looseness")
@@ -32,7 +32,7 @@ TABLE_KEYS = {"rows", "columns", "metrics", "where"}
 TOP_KEYS = {"sweep", "scenes", "configurations", "table"}
 SCENE_RECORD_FIELDS = ("preset", "garment", "fabric", "seed", "framing", "detail", "fit", "looseness")
 """A synthetic scene's keys as every record carries them (None where the scene left one to its preset)."""
-RECORD_FIELDS = ("scene", "configuration", "motion", "light", "variant", *SCENE_RECORD_FIELDS)
+RECORD_FIELDS = ("scene", "configuration", "motion", "light", "mode", "variant", *SCENE_RECORD_FIELDS)
 """Record fields a table may group or filter by."""
 
 
@@ -76,6 +76,11 @@ class Sweep:
     table: Table
     lights: list[str] = field(default_factory=lambda: ["capture"])
     """The lights runs are rendered and evaluated under (:data:`pgc.pipeline.relight.EVAL_LIGHTS`)."""
+    modes: list[str] = field(default_factory=lambda: ["appearance"])
+    """The evaluation modes recorded (:data:`pgc.stages.eval.MODES`)."""
+    holdout_every: int = 0
+    """Every k-th view of each scene's capture is held out of the reconstruction, and the runs are rendered and
+    evaluated from the held-out cameras only (0: every view reconstructs, runs render from all)."""
 
 
 def _fail(path: Path, key: str, message: str) -> PGCConfigError:
@@ -140,10 +145,44 @@ def load_sweep(path: str | Path, registry: Any = None) -> Sweep:
                                                                 "'eval' has nothing to compare with; drop 'eval' "
                                                                 "from [sweep].steps")
     lights = _lights(path, head)
-    if len(lights) > 1 and "eval" in steps and "light" not in [*table.rows, *table.columns, *table.where]:
-        table.columns.append("light")  # a cell never averages over lights
+    modes = _modes(path, head, steps)
+    for name, values in (("light", lights), ("mode", modes)):
+        if len(values) > 1 and "eval" in steps and name not in [*table.rows, *table.columns, *table.where]:
+            table.columns.append(name)  # a cell never averages over lights or modes
     return Sweep(path, str(head.get("name", path.stem)), list(steps), list(motions), scenes, configurations, table,
-                 lights)
+                 lights, modes, _holdout_every(path, head, steps))
+
+
+def _modes(path: Path, head: dict[str, Any], steps: list[str]) -> list[str]:
+    """``[sweep].modes`` (default ``["appearance"]``), checked: modes of :data:`pgc.stages.eval.MODES`, once each,
+    and only with the step 'eval'."""
+    from pgc.stages.eval import MODES
+
+    if "modes" not in head:
+        return ["appearance"]
+    modes = head["modes"]
+    if not isinstance(modes, list) or not modes or not all(isinstance(m, str) for m in modes):
+        raise _fail(path, "[sweep].modes", f"give a non-empty list of evaluation modes from {', '.join(MODES)}")
+    for m in modes:
+        if m not in MODES:
+            raise _fail(path, "[sweep].modes", f"unknown mode '{m}'; modes: {', '.join(MODES)}")
+    if len(set(modes)) != len(modes):
+        raise _fail(path, "[sweep].modes", f"a mode is named twice in {modes}")
+    if "eval" not in steps:
+        raise _fail(path, "[sweep].modes", "evaluation modes need the step 'eval' in [sweep].steps")
+    return list(modes)
+
+
+def _holdout_every(path: Path, head: dict[str, Any], steps: list[str]) -> int:
+    """``[sweep].holdout_every`` (default 0: off), checked: an integer >= 2, with the step 'render'."""
+    k = head.get("holdout_every", 0)
+    if not isinstance(k, int) or isinstance(k, bool) or (k != 0 and k < 2):
+        raise _fail(path, "[sweep].holdout_every", f"{k!r}: give an integer >= 2 (every k-th view is held out of "
+                                                   "the reconstruction) or 0 (none)")
+    if k and "render" not in steps:
+        raise _fail(path, "[sweep].holdout_every", "held-out views are rendered and evaluated: the sweep needs the "
+                                                   "step 'render' in [sweep].steps")
+    return k
 
 
 def _lights(path: Path, head: dict[str, Any]) -> list[str]:
