@@ -5,9 +5,10 @@
 key and the resolved configuration without the downstream tables :data:`DOWNSTREAM`), so configurations that
 differ only downstream share one asset. ``OUT/runs/<scene>-<motion>-<key>/``: one run folder per asset, motion and resolved configuration.
 A folder that another configuration's folder could partly reuse starts as a copy of that folder's stage
-caches (:func:`seed_from`): the asset of the scene's first configuration, or the run of the first
-configuration with the same asset and motion. The pipeline's own content keys then decide which stages are
-reused (e.g. mesh, splats and base colour when only the BRDF differs) and which are recomputed.
+caches (:func:`seed_from`): the asset of the scene's first configuration, or the scene's first run on the same
+motion. The pipeline's own content keys then decide which stages are reused (e.g. mesh, splats and base colour
+when only the BRDF differs; the ground-truth renders when the simulation came out the same) and which are
+recomputed.
 ``OUT/results/<task>.json``: each finished task's result; a rerun reads them and runs only what is missing.
 
 With ``holdout_every`` k, each scene's capture is split into ``OUT/captures/<scene>-<key>-train<k>/`` (the views
@@ -88,7 +89,7 @@ def plan(sweep: Sweep, out: Path) -> tuple[list[Task], list[Unit], dict[str, Any
     motions = [str((root / m).resolve()) if (root / m).exists() else m for m in sweep.motions]
     for scene in sweep.scenes:
         first_asset: tuple[str, Path] | None = None
-        first_run: dict[tuple[str, str], tuple[str, Path]] = {}
+        first_run: dict[str, tuple[str, Path]] = {}  # motion -> the scene's first run on it
         for conf in sweep.configurations:
             skey = scene_key(scene, conf.cfg)  # configurations with one scene renderer share the capture
             if scene.synth is not None:
@@ -121,13 +122,13 @@ def plan(sweep: Sweep, out: Path) -> tuple[list[Task], list[Unit], dict[str, Any
             for motion_name, motion in zip(sweep.motions, motions):
                 rkey = content_key("run", akey, motion, conf.cfg.to_dict(), sweep.steps, sweep.lights)
                 run = out / "runs" / f"{scene.name}-{Path(motion_name).stem.replace(':', '-')}-{rkey}"
-                rdonor = first_run.get((asset_task, motion))
+                rdonor = first_run.get(motion)
                 rdonor = rdonor if rdonor and rdonor[0] != f"run-{rkey}" else None
                 run_task = add(f"run-{rkey}", make_run,
                                (str(asset), str(eval_capture), motion, str(run), conf.data, conf.source, sweep.steps,
                                 sweep.lights, str(rdonor[1]) if rdonor else None, str(out)),
                                [asset_task] + ([rdonor[0]] if rdonor else []))
-                first_run.setdefault((asset_task, motion), (run_task, run))
+                first_run.setdefault(motion, (run_task, run))
                 modes = {m: run_task if m == "appearance" else
                          add(f"eval-{m}-{rkey}", make_mode_eval, (str(run), str(eval_capture), conf.data, conf.source,
                                                                   sweep.lights, m, str(out)), [run_task])
