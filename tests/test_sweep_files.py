@@ -188,3 +188,91 @@ def test_split_holds_out_every_kth_view_with_the_ground_truth_in_both(tmp_path):
     assert json.loads((tmp_path / "results" / "split-x-3.json").read_text()) == result
     with pytest.raises(Exception, match="too few to hold out every 4th view"):
         make_split(str(capture), str(tmp_path / "t2"), str(tmp_path / "h2"), 4, "split-y-4", str(tmp_path))
+
+
+HELD_OUT_BOTH_MODES = """
+[sweep]
+name = "m"
+base = "tiny"
+config = "{fast}"
+motions = ["goalpost"]
+lights = ["capture", "low-key"]
+modes = ["appearance", "independent"]
+holdout_every = 3
+[scenes.s]
+preset = "tiny"
+[configurations.lambertian]
+brdf = {{ use = "lambertian" }}
+[configurations.pgc-sheen]
+brdf = {{ use = "pgc-sheen" }}
+"""
+
+
+@pytest.mark.slow
+def test_tiny_sweep_on_held_out_views_in_both_modes(tmp_path):
+    from pgc.io.capture import read_capture
+    from pgc.sweep.runner import run_sweep
+
+    path = tmp_path / "m.toml"
+    path.write_text(HELD_OUT_BOTH_MODES.format(fast=SWEEPS / "tiny-fast.toml"))
+    out = tmp_path / "out"
+    result = run_sweep(path, out)
+    assert result["failed"] == {} and result["computed"] == 8  # capture, split, 2 assets, 2 runs, 2 mode evals
+    records = result["records"]
+    assert len(records) == 2 * 2 * 2 * 3  # configurations x modes x lights x variants
+    (held,) = {r["capture"] for r in records}
+    assert held.endswith("-heldout3")
+    held_names = [c.name for c in read_capture(held).cameras]
+    assert len(held_names) == 2  # views 2 and 5 of 6
+    for r in records:
+        assert all(math.isfinite(v) for v in r["metrics"].values())
+        folder = Path(r["run"]) / ("relit/low-key" if r["light"] == "low-key" else "")
+        metrics = json.loads((folder / "metrics.json").read_text())
+        assert metrics["cameras"] == held_names  # rendered and evaluated from the held-out views only
+        assert set(metrics["modes"]) == {"appearance", "independent"}
+        assert metrics["modes"][r["mode"]][r["variant"]]["psnr"] == r["metrics"]["psnr"]
+        manifest = json.loads((Path(r["asset"]) / "manifest.json").read_text())
+        assert Path(manifest["config"]["source"]["capture"]).name.endswith("-train3")
+    by = {(r["configuration"], r["mode"], r["light"], r["variant"]): r["metrics"]["psnr"] for r in records}
+    # the independent truth differs from the matched one, and is simulated once per run (the relit run reuses it)
+    assert by[("lambertian", "independent", "capture", "hybrid")] != by[("lambertian", "appearance", "capture", "hybrid")]
+    for run in {r["run"] for r in records}:
+        sims = {p.name: p.stat().st_ino for p in (Path(run) / "gt" / "truth_sim").iterdir()}
+        relit = {p.name: p.stat().st_ino for p in (Path(run) / "relit" / "low-key" / "gt" / "truth_sim").iterdir()}
+        assert sims and relit == sims
+    # the two BRDFs share the scene's simulation and ground-truth renders
+    runs = sorted({r["run"] for r in records})
+    gts = [sorted(p.name for p in (Path(run) / "gt").iterdir() if p.name != "truth_sim") for run in runs]
+    assert gts[0] == gts[1]
+    again = run_sweep(path, out)
+    assert again["computed"] == 0 and again["records"] == records
+
+
+def test_collect_tabulates_the_finished_tasks_and_runs_nothing(tmp_path, capsys):
+    from pgc.cli import main
+    from pgc.sweep.runner import NOT_RUN, run_sweep
+    from pgc.sweep.spec import load_sweep
+    from pgc.sweep.work import plan, result_path
+
+    path = tmp_path / "sw.toml"
+    path.write_text(GOOD.replace('motions = ["goalpost"]', 'motions = ["goalpost", "spooky"]'))
+    out = tmp_path / "out"
+    tasks, units, _ = plan(load_sweep(path), out)
+    first = units[0]
+    variant = {"hybrid": {"psnr": 20.0}, "3dgs_only": {"psnr": 15.0}, "pbr_only": {"psnr": 19.0}}
+    finished = {first.asset_task: {"asset": "A", "brdf": "pgc-sheen", "figures": {}, "seconds": 1.0},
+                first.run_task: {"run": "R", "seconds": {"animate": 2.0}, "metrics": {"capture": variant}}}
+    for key, value in finished.items():
+        result_path(out, key).parent.mkdir(parents=True, exist_ok=True)
+        result_path(out, key).write_text(json.dumps(value))
+    result = run_sweep(path, out, collect=True)
+    assert result["computed"] == 0
+    assert set(result["failed"]) == {t.key for t in tasks} - set(finished) and set(result["failed"].values()) == {NOT_RUN}
+    done = [r for r in result["records"] if "failed" not in r]
+    assert [(r["motion"], r["variant"], r["metrics"]["psnr"]) for r in done] == [
+        ("goalpost", "hybrid", 20.0), ("goalpost", "3dgs_only", 15.0), ("goalpost", "pbr_only", 19.0)]
+    assert [r["motion"] for r in result["records"] if "failed" in r] == ["spooky"]
+    assert json.loads((out / "sweep.json").read_text()) == result["records"]
+    assert not (out / "captures").exists()  # nothing ran
+    assert main(["sweep", str(path), "--out", str(out), "--collect", "--quiet"]) == 0
+    assert "not run: 2 tasks" in capsys.readouterr().out

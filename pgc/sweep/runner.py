@@ -7,9 +7,12 @@ from pathlib import Path
 from typing import Any
 
 from pgc.events import Reporter
-from pgc.sweep.engine import run_tasks
+from pgc.sweep.engine import Outcome, run_tasks
 from pgc.sweep.spec import SCENE_RECORD_FIELDS, Sweep, load_sweep
 from pgc.sweep.work import Unit, plan
+
+NOT_RUN = "not run (pgc sweep --collect)"
+"""What a task not yet finished is marked with when a sweep's outputs are collected without running it."""
 
 
 def records_of(sweep: Sweep, units: list[Unit], results: dict[str, Any], failed: dict[str, str]) -> list[dict]:
@@ -47,10 +50,11 @@ def records_of(sweep: Sweep, units: list[Unit], results: dict[str, Any], failed:
 
 def run_sweep(path: str | os.PathLike, out: str | os.PathLike | None = None, scheduler: str | None = None,
               reporter: Reporter | None = None, registry: Any = None, retries: int = 2,
-              threads: int | None = None) -> dict[str, Any]:
+              threads: int | None = None, collect: bool = False) -> dict[str, Any]:
     """Run the sweep file ``path`` into ``out`` (default ``runs/sweep-NAME``); returns ``{"records", "failed",
     "computed", "out", "table"}`` (``computed``: how many tasks ran now; 0 on a rerun of a finished sweep;
-    ``table``: the file's :class:`~pgc.sweep.spec.Table`)."""
+    ``table``: the file's :class:`~pgc.sweep.spec.Table`). ``collect``: run nothing, build the outputs from the
+    tasks finished so far (the others are listed in ``failed`` as :data:`NOT_RUN`)."""
     from pgc.checks import naming_output
     from pgc.io.lock import FolderLock
     from pgc.sweep.table import write_outputs
@@ -59,7 +63,10 @@ def run_sweep(path: str | os.PathLike, out: str | os.PathLike | None = None, sch
     out = Path(out or f"runs/sweep-{sweep.name}")
     with FolderLock(out, "pgc sweep"), naming_output(out):
         tasks, units, done = plan(sweep, out)
-        outcome = run_tasks(tasks, scheduler, reporter, retries=retries, threads=threads, name="sweep")
+        if collect:
+            outcome = Outcome(failed={t.key: NOT_RUN for t in tasks})
+        else:
+            outcome = run_tasks(tasks, scheduler, reporter, retries=retries, threads=threads, name="sweep")
         results = done | outcome.results
         records = records_of(sweep, units, results, outcome.failed)
         write_outputs(out, sweep.name, records, sweep.table, outcome.failed)
