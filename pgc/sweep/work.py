@@ -38,6 +38,9 @@ SEEDED = ("stages", "render", "gt", "relit")
 """Cache folders copied from a donor folder (stage caches, ground-truth renders and the relit runs' own, all
 content-keyed)."""
 LOCK_COMMAND = "pgc sweep"
+MODE_PRIORITY = -1
+"""The mode tasks' priority: every run (with its appearance metrics) comes before them, so that an interrupted
+sweep has its appearance table whole (the independent truth simulation is the costly part)."""
 
 
 def asset_config_key(cfg: Any) -> str:
@@ -74,7 +77,7 @@ def plan(sweep: Sweep, out: Path) -> tuple[list[Task], list[Unit], dict[str, Any
     done: dict[str, Any] = {}
     units: list[Unit] = []
 
-    def add(key: str, fn: Any, args: tuple, deps: list[str]) -> str:
+    def add(key: str, fn: Any, args: tuple, deps: list[str], priority: int = 0) -> str:
         if key in tasks or key in done:
             return key
         cached = read_result(out, key)
@@ -82,7 +85,7 @@ def plan(sweep: Sweep, out: Path) -> tuple[list[Task], list[Unit], dict[str, Any
             done[key] = cached
             return key
         args = args + tuple(done[d] for d in deps if d in done)
-        tasks[key] = Task(key, fn, args, tuple(d for d in deps if d not in done))
+        tasks[key] = Task(key, fn, args, tuple(d for d in deps if d not in done), priority)
         return key
 
     root = sweep.path.parent
@@ -131,7 +134,8 @@ def plan(sweep: Sweep, out: Path) -> tuple[list[Task], list[Unit], dict[str, Any
                 first_run.setdefault(motion, (run_task, run))
                 modes = {m: run_task if m == "appearance" else
                          add(f"eval-{m}-{rkey}", make_mode_eval, (str(run), str(eval_capture), conf.data, conf.source,
-                                                                  sweep.lights, m, str(out)), [run_task])
+                                                                  sweep.lights, m, str(out)), [run_task],
+                             MODE_PRIORITY)
                          for m in (sweep.modes if "eval" in sweep.steps else ())}
                 units.append(Unit(scene, conf, motion_name, str(eval_capture), asset_task, run_task, modes))
     return list(tasks.values()), units, done
