@@ -78,6 +78,11 @@ def test_ablation_sweeps_expand_to_scenes_x_seeds_x_motions_in_both_modes(tmp_pa
     assert len(units) == len(sweep.scenes) * len(sweep.motions)
     kinds = [t.key.split("-")[0] for t in tasks]
     assert kinds.count("run") == kinds.count("eval") == len(units)
+    # breadth first: a run's priority falls with its motion's index, every mode task's below every run's
+    runs = {t.key: t.priority for t in tasks if t.key.startswith("run-")}
+    assert {runs[u.run_task] for u in units if u.motion == sweep.motions[0]} == {0}
+    assert {runs[u.run_task] for u in units if u.motion == sweep.motions[-1]} == {1 - len(sweep.motions)}
+    assert max(t.priority for t in tasks if t.key.startswith("eval-")) < min(runs.values())
     assert all(set(u.mode_tasks) == {"appearance", "independent"} and u.mode_tasks["appearance"] == u.run_task
                for u in units)
     t = sweep.table

@@ -38,9 +38,13 @@ SEEDED = ("stages", "render", "gt", "relit")
 """Cache folders copied from a donor folder (stage caches, ground-truth renders and the relit runs' own, all
 content-keyed)."""
 LOCK_COMMAND = "pgc sweep"
-MODE_PRIORITY = -1
-"""The mode tasks' priority: every run (with its appearance metrics) comes before them, so that an interrupted
-sweep has its appearance table whole (the independent truth simulation is the costly part)."""
+
+
+def priority(motion_index: int, motions: int, mode_task: bool = False) -> int:
+    """A run's task priority: breadth first, every scene's run on the first motion before any on the second;
+    the mode tasks after every run (the independent truth simulation is the costly part). A sweep stopped early
+    then has its scenes and seeds covered on the first motions, with their appearance metrics."""
+    return -motion_index - (motions if mode_task else 0)
 
 
 def asset_config_key(cfg: Any) -> str:
@@ -122,7 +126,7 @@ def plan(sweep: Sweep, out: Path) -> tuple[list[Task], list[Unit], dict[str, Any
             if "animate" not in sweep.steps:
                 units.append(Unit(scene, conf, None, str(capture), asset_task, None))
                 continue
-            for motion_name, motion in zip(sweep.motions, motions):
+            for i, (motion_name, motion) in enumerate(zip(sweep.motions, motions)):
                 rkey = content_key("run", akey, motion, conf.cfg.to_dict(), sweep.steps, sweep.lights)
                 run = out / "runs" / f"{scene.name}-{Path(motion_name).stem.replace(':', '-')}-{rkey}"
                 rdonor = first_run.get(motion)
@@ -130,12 +134,12 @@ def plan(sweep: Sweep, out: Path) -> tuple[list[Task], list[Unit], dict[str, Any
                 run_task = add(f"run-{rkey}", make_run,
                                (str(asset), str(eval_capture), motion, str(run), conf.data, conf.source, sweep.steps,
                                 sweep.lights, str(rdonor[1]) if rdonor else None, str(out)),
-                               [asset_task] + ([rdonor[0]] if rdonor else []))
+                               [asset_task] + ([rdonor[0]] if rdonor else []), priority(i, len(motions)))
                 first_run.setdefault(motion, (run_task, run))
                 modes = {m: run_task if m == "appearance" else
                          add(f"eval-{m}-{rkey}", make_mode_eval, (str(run), str(eval_capture), conf.data, conf.source,
                                                                   sweep.lights, m, str(out)), [run_task],
-                             MODE_PRIORITY)
+                             priority(i, len(motions), mode_task=True))
                          for m in (sweep.modes if "eval" in sweep.steps else ())}
                 units.append(Unit(scene, conf, motion_name, str(eval_capture), asset_task, run_task, modes))
     return list(tasks.values()), units, done
