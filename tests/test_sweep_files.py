@@ -107,10 +107,11 @@ preset = "tiny"
     ('lights = ["capture"]', 'modes = ["independent", "independent"]', "[sweep].modes: a mode is named twice"),
     ('"render", "eval"]', '"render"]\nmodes = ["independent"]', "[sweep].modes: evaluation modes need the step"),
     ('lights = ["capture"]', 'holdout_every = 1', "[sweep].holdout_every: 1: give an integer >= 2"),
+    ('preset = "tiny"', 'preset = "tiny"\nviews = 1', "[scenes.a].views: 1: give the number of capture cameras"),
     ('lights = ["capture"]', 'holdout_every = true', "[sweep].holdout_every: True: give"),
     ('"animate", "render", "eval"]', '"animate"]\nholdout_every = 3', "[sweep].holdout_every: held-out views"),
 ])
-def test_bad_modes_and_holdout_fail_naming_file_and_key(tmp_path, old, new, message):
+def test_bad_modes_holdout_and_views_fail_naming_file_and_key(tmp_path, old, new, message):
     from pgc.sweep.spec import load_sweep
 
     assert old in GOOD

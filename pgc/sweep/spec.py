@@ -22,15 +22,17 @@ from pgc.io.limits import read_toml
 STEPS = ("reconstruct", "animate", "render", "eval")
 """The steps in pipeline order; a sweep runs a prefix of them."""
 SWEEP_KEYS = {"name", "base", "config", "steps", "motions", "lights", "modes", "holdout_every"}
-SYNTH_KEYS = {"preset", "garment", "fabric", "seed", "framing", "detail", "fit", "looseness"}
+SYNTH_KEYS = {"preset", "garment", "fabric", "seed", "framing", "detail", "fit", "looseness", "views"}
 SCENE_KEYS = SYNTH_KEYS | {"capture"}
-NUMERIC_KEYS = ("seed", "looseness")
+NUMERIC_KEYS = ("seed", "looseness", "views")
 """Synthetic-scene keys whose values name a varied scene with the key in front (``-seed3``, ``-looseness0.03``)."""
+VIEWS = (2, 1024)
+"""The range of a synthetic scene's camera count (``views``: the preset's unless given)."""
 LOOSENESS = (0.01, 0.15)
 """The garment generator's range of clearance from the body, metres (``pgc synth --looseness``)."""
 TABLE_KEYS = {"rows", "columns", "metrics", "where"}
 TOP_KEYS = {"sweep", "scenes", "configurations", "table"}
-SCENE_RECORD_FIELDS = ("preset", "garment", "fabric", "seed", "framing", "detail", "fit", "looseness")
+SCENE_RECORD_FIELDS = ("preset", "garment", "fabric", "seed", "framing", "detail", "fit", "looseness", "views")
 """A synthetic scene's keys as every record carries them (None where the scene left one to its preset)."""
 RECORD_FIELDS = ("scene", "configuration", "motion", "light", "mode", "variant", *SCENE_RECORD_FIELDS)
 """Record fields a table may group or filter by."""
@@ -40,7 +42,7 @@ RECORD_FIELDS = ("scene", "configuration", "motion", "light", "mode", "variant",
 class Scene:
     name: str
     synth: dict[str, Any] | None
-    """preset, garment, fabric, seed, framing of a synthetic scene, and detail, fit, looseness where the sweep
+    """preset, garment, fabric, seed, framing of a synthetic scene, and detail, fit, looseness, views where the sweep
     file gives them (None for a capture folder)."""
     capture: Path | None = None
 
@@ -256,7 +258,7 @@ def _scenes(path: Path, table: dict[str, Any]) -> list[Scene]:
         _check_name(path, where, name)
         if not isinstance(spec, dict):
             raise _fail(path, where, "must be a table (preset, garment, fabric, seed, framing, detail, fit, "
-                                     "looseness; or capture)")
+                                     "looseness, views; or capture)")
         _unknown(path, where, spec, SCENE_KEYS)
         if "capture" in spec:
             if set(spec) & SYNTH_KEYS:
@@ -279,12 +281,16 @@ def _scenes(path: Path, table: dict[str, Any]) -> list[Scene]:
                     raise _fail(path, f"{where}.looseness", f"{v!r}: give the garment's clearance from the body in "
                                                             f"metres, in [{LOOSENESS[0]}, {LOOSENESS[1]}] (or a "
                                                             "list of them)")
+                if key == "views" and (not isinstance(v, int) or isinstance(v, bool)
+                                       or not VIEWS[0] <= v <= VIEWS[1]):
+                    raise _fail(path, f"{where}.views", f"{v!r}: give the number of capture cameras, an integer in "
+                                                        f"[{VIEWS[0]}, {VIEWS[1]}] (or a list of them)")
                 if key in choices and v not in choices[key]:
                     raise _fail(path, f"{where}.{key}", f"unknown {key} {v!r}; choose from {', '.join(choices[key])}")
         varying = [k for k, v in lists.items() if len(v) > 1]
         for combo in itertools.product(*lists.values()):
             values = dict(zip(lists, combo))
-            # detail, fit and looseness enter the spec only when given, so the scene keys of sweeps without them
+            # detail, fit, looseness and views enter the spec only when given, so the scene keys of sweeps without them
             # (and their cached captures) stay as they were
             synth = {"preset": "tiny", "garment": None, "fabric": None, "seed": 0, "framing": None} | values
             suffix = "".join(f"-{k}{values[k]}" if k in NUMERIC_KEYS else f"-{values[k]}" for k in varying)

@@ -181,7 +181,7 @@ def seed_from(donor: str | None, folder: Path) -> bool:
 def make_capture(synth: dict[str, Any], folder: str, data: dict[str, Any], source: str, out: str,
                  *deps: Any) -> dict[str, Any]:
     """Generate the synthetic capture of a scene spec (``preset``, ``garment``, ``fabric``, ``seed``, ``framing``,
-    and ``detail``, ``fit``, ``looseness`` where given; a missing or None value keeps the preset's) with the scene
+    and ``detail``, ``fit``, ``looseness``, ``views`` where given; a missing or None value keeps the preset's) with the scene
     renderer of the configuration ``data``, as ``pgc synth --config`` does with the same options."""
     from pgc.synth.generate import generate, get_preset
     from pgc.synth.render import scene_renderer
@@ -189,7 +189,7 @@ def make_capture(synth: dict[str, Any], folder: str, data: dict[str, Any], sourc
     start = time.perf_counter()
     cfg = _config(data, source)
     renderer = scene_renderer(cfg)
-    preset = get_preset(synth["preset"], framing=synth.get("framing"))
+    preset = get_preset(synth["preset"], framing=synth.get("framing"), views=synth.get("views"))
     generate(folder, preset, garment=synth.get("garment"), fabric=synth.get("fabric"), seed=synth["seed"],
              looseness=synth.get("looseness"), detail=synth.get("detail"), fit=synth.get("fit"), renderer=renderer,
              body_model=cfg.create("body_model"))
