@@ -181,8 +181,8 @@ def seed_from(donor: str | None, folder: Path) -> bool:
 def make_capture(synth: dict[str, Any], folder: str, data: dict[str, Any], source: str, out: str,
                  *deps: Any) -> dict[str, Any]:
     """Generate the synthetic capture of a scene spec (``preset``, ``garment``, ``fabric``, ``seed``, ``framing``,
-    and ``detail``, ``fit``, ``looseness``, ``views`` where given; a missing or None value keeps the preset's) with the scene
-    renderer of the configuration ``data``, as ``pgc synth --config`` does with the same options."""
+    and ``detail``, ``fit``, ``looseness``, ``views`` where given; a missing or None value keeps the preset's) with
+    the scene renderer of the configuration ``data``, as ``pgc synth --config`` does with the same options."""
     from pgc.synth.generate import generate, get_preset
     from pgc.synth.render import scene_renderer
 
