@@ -209,8 +209,10 @@ holdout_every = 3
 preset = "tiny"
 [configurations.lambertian]
 brdf = {{ use = "lambertian" }}
+stages.eval.truth_options = {{ substeps = 2, iterations = 2, settle_frames = 2 }}
 [configurations.pgc-sheen]
 brdf = {{ use = "pgc-sheen" }}
+stages.eval.truth_options = {{ substeps = 2, iterations = 2, settle_frames = 2 }}
 """
 
 
