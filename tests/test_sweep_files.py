@@ -261,6 +261,7 @@ def test_collect_tabulates_the_finished_tasks_and_runs_nothing(tmp_path, capsys)
     from pgc.cli import main
     from pgc.sweep.runner import NOT_RUN, run_sweep
     from pgc.sweep.spec import load_sweep
+    from pgc.sweep.table import table_grid
     from pgc.sweep.work import plan, result_path
 
     path = tmp_path / "sw.toml"
@@ -282,6 +283,8 @@ def test_collect_tabulates_the_finished_tasks_and_runs_nothing(tmp_path, capsys)
     assert [(r["motion"], r["variant"], r["metrics"]["psnr"]) for r in done] == [
         ("goalpost", "hybrid", 20.0), ("goalpost", "3dgs_only", 15.0), ("goalpost", "pbr_only", 19.0)]
     assert [r["motion"] for r in result["records"] if "failed" in r] == ["spooky"]
+    head, grid = table_grid(result["records"], result["table"])
+    assert grid == [["base", "18 ± 2.6"]]  # the three variants of the finished unit; the other is no empty row
     assert json.loads((out / "sweep.json").read_text()) == result["records"]
     assert not (out / "captures").exists()  # nothing ran
     assert main(["sweep", str(path), "--out", str(out), "--collect", "--quiet"]) == 0
