@@ -6,6 +6,7 @@ sweep keys ``modes`` and ``holdout_every``."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
