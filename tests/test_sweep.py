@@ -151,6 +151,19 @@ def test_engine_in_process_orders_dependencies_and_contains_failures():
     assert out.failed == {"x": "RuntimeError: broken on purpose", "y": "needs failed task x"}
 
 
+def _log(order: list, key: str, *deps: object) -> str:
+    order.append(key)
+    return key
+
+
+def test_engine_in_process_runs_higher_priorities_first_after_their_dependencies():
+    order: list[str] = []
+    tasks = [Task("late", _log, (order, "late"), (), -1), Task("a", _log, (order, "a")),
+             Task("late-after-b", _log, (order, "late-after-b"), ("b",), -1), Task("b", _log, (order, "b"), ("late",))]
+    run_tasks(tasks)
+    assert order == ["a", "late", "b", "late-after-b"]  # 'b' needs 'late': priority never breaks a dependency
+
+
 def _worker_threads(*deps: object) -> dict:
     import torch
 

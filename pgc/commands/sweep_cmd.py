@@ -22,6 +22,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--threads", type=int, metavar="N", help="threads per worker task (default: cores / workers)")
     p.add_argument("--retries", type=int, default=2, help="retries of a failed task (default 2)")
     p.add_argument("--out", default=None, help="output folder (default runs/sweep-NAME)")
+    p.add_argument("--collect", action="store_true",
+                   help="run nothing: write the table and records of the tasks finished so far (e.g. of an "
+                        "interrupted sweep); the unfinished ones are listed as not run")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     p.add_argument("--json", action="store_true", help="print the records as JSON")
     p.set_defaults(func=run)
@@ -43,14 +46,17 @@ def check_options(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pgc.sweep.runner import run_sweep
+    from pgc.sweep.runner import NOT_RUN, run_sweep
     from pgc.sweep.table import text_table
 
     check_options(args)
     registry, reporter = reporter_for(args)
-    result = run_sweep(args.sweep, args.out, args.scheduler, reporter, registry, args.retries, args.threads)
-    failed = "".join(f"\nfailed: {k}: {v}" for k, v in result["failed"].items())
+    result = run_sweep(args.sweep, args.out, args.scheduler, reporter, registry, args.retries, args.threads,
+                       args.collect)
+    failed = "".join(f"\nfailed: {k}: {v}" for k, v in result["failed"].items() if v != NOT_RUN)
+    not_run = sum(v == NOT_RUN for v in result["failed"].values())
+    failed += f"\nnot run: {not_run} tasks (run the sweep again to compute them)" if not_run else ""
     emit(args, result["records"], text_table(result["records"], result["table"])
          + f"\ntasks run: {result['computed']}  records: {result['out']}/sweep.json  page: {result['out']}/sweep.html"
          + failed)
-    return 1 if result["failed"] else 0
+    return 1 if any(v != NOT_RUN for v in result["failed"].values()) else 0

@@ -37,6 +37,8 @@ class Task:
     args: tuple = ()
     deps: tuple[str, ...] = ()
     """Keys of the tasks whose results are appended to ``args``."""
+    priority: int = 0
+    """Among tasks ready to run, those of higher priority run first (ties: in the order given)."""
 
 
 @dataclass
@@ -116,7 +118,8 @@ def _run_here(tasks: list[Task], reporter: Reporter, name: str) -> Outcome:
 
 
 def _ordered(tasks: list[Task]) -> list[Task]:
-    """Tasks in an order where every task follows its dependencies (stable otherwise)."""
+    """Tasks in an order where every task follows its dependencies, higher priorities first where the
+    dependencies allow (stable otherwise)."""
     by_key, done, order = {t.key: t for t in tasks}, set(), []
 
     def visit(t: Task, path: tuple[str, ...]) -> None:
@@ -129,7 +132,7 @@ def _ordered(tasks: list[Task]) -> list[Task]:
         done.add(t.key)
         order.append(t)
 
-    for t in tasks:
+    for t in sorted(tasks, key=lambda t: -t.priority):
         visit(t, ())
     return order
 
@@ -205,7 +208,7 @@ def _submit_all(client: Any, tasks: list[Task], reporter: Reporter, retries: int
     futures: dict[str, Any] = {}
     for t in _ordered(tasks):
         futures[t.key] = client.submit(_PinnedCall(t.fn, threads), *t.args, *(futures[d] for d in t.deps),
-                                       key=t.key, retries=retries, pure=False)
+                                       key=t.key, retries=retries, pure=False, priority=t.priority)
     by_future = {f.key: k for k, f in futures.items()}
     deps = {t.key: t.deps for t in tasks}
     with reporter.stage(name, total=len(tasks)) as st:

@@ -21,18 +21,20 @@ from pgc.io.limits import read_toml
 
 STEPS = ("reconstruct", "animate", "render", "eval")
 """The steps in pipeline order; a sweep runs a prefix of them."""
-SWEEP_KEYS = {"name", "base", "config", "steps", "motions", "lights"}
-SYNTH_KEYS = {"preset", "garment", "fabric", "seed", "framing", "detail", "fit", "looseness"}
+SWEEP_KEYS = {"name", "base", "config", "steps", "motions", "lights", "modes", "holdout_every"}
+SYNTH_KEYS = {"preset", "garment", "fabric", "seed", "framing", "detail", "fit", "looseness", "views"}
 SCENE_KEYS = SYNTH_KEYS | {"capture"}
-NUMERIC_KEYS = ("seed", "looseness")
+NUMERIC_KEYS = ("seed", "looseness", "views")
 """Synthetic-scene keys whose values name a varied scene with the key in front (``-seed3``, ``-looseness0.03``)."""
+VIEWS = (2, 1024)
+"""The range of a synthetic scene's camera count (``views``: the preset's unless given)."""
 LOOSENESS = (0.01, 0.15)
 """The garment generator's range of clearance from the body, metres (``pgc synth --looseness``)."""
 TABLE_KEYS = {"rows", "columns", "metrics", "where"}
 TOP_KEYS = {"sweep", "scenes", "configurations", "table"}
-SCENE_RECORD_FIELDS = ("preset", "garment", "fabric", "seed", "framing", "detail", "fit", "looseness")
+SCENE_RECORD_FIELDS = ("preset", "garment", "fabric", "seed", "framing", "detail", "fit", "looseness", "views")
 """A synthetic scene's keys as every record carries them (None where the scene left one to its preset)."""
-RECORD_FIELDS = ("scene", "configuration", "motion", "light", "variant", *SCENE_RECORD_FIELDS)
+RECORD_FIELDS = ("scene", "configuration", "motion", "light", "mode", "variant", *SCENE_RECORD_FIELDS)
 """Record fields a table may group or filter by."""
 
 
@@ -40,7 +42,7 @@ RECORD_FIELDS = ("scene", "configuration", "motion", "light", "variant", *SCENE_
 class Scene:
     name: str
     synth: dict[str, Any] | None
-    """preset, garment, fabric, seed, framing of a synthetic scene, and detail, fit, looseness where the sweep
+    """preset, garment, fabric, seed, framing of a synthetic scene, and detail, fit, looseness, views where the sweep
     file gives them (None for a capture folder)."""
     capture: Path | None = None
 
@@ -76,6 +78,11 @@ class Sweep:
     table: Table
     lights: list[str] = field(default_factory=lambda: ["capture"])
     """The lights runs are rendered and evaluated under (:data:`pgc.pipeline.relight.EVAL_LIGHTS`)."""
+    modes: list[str] = field(default_factory=lambda: ["appearance"])
+    """The evaluation modes recorded (:data:`pgc.stages.eval.MODES`)."""
+    holdout_every: int = 0
+    """Every k-th view of each scene's capture is held out of the reconstruction, and the runs are rendered and
+    evaluated from the held-out cameras only (0: every view reconstructs, runs render from all)."""
 
 
 def _fail(path: Path, key: str, message: str) -> PGCConfigError:
@@ -140,10 +147,44 @@ def load_sweep(path: str | Path, registry: Any = None) -> Sweep:
                                                                 "'eval' has nothing to compare with; drop 'eval' "
                                                                 "from [sweep].steps")
     lights = _lights(path, head)
-    if len(lights) > 1 and "eval" in steps and "light" not in [*table.rows, *table.columns, *table.where]:
-        table.columns.append("light")  # a cell never averages over lights
+    modes = _modes(path, head, steps)
+    for name, values in (("light", lights), ("mode", modes)):
+        if len(values) > 1 and "eval" in steps and name not in [*table.rows, *table.columns, *table.where]:
+            table.columns.append(name)  # a cell never averages over lights or modes
     return Sweep(path, str(head.get("name", path.stem)), list(steps), list(motions), scenes, configurations, table,
-                 lights)
+                 lights, modes, _holdout_every(path, head, steps))
+
+
+def _modes(path: Path, head: dict[str, Any], steps: list[str]) -> list[str]:
+    """``[sweep].modes`` (default ``["appearance"]``), checked: modes of :data:`pgc.stages.eval.MODES`, once each,
+    and only with the step 'eval'."""
+    from pgc.stages.eval import MODES
+
+    if "modes" not in head:
+        return ["appearance"]
+    modes = head["modes"]
+    if not isinstance(modes, list) or not modes or not all(isinstance(m, str) for m in modes):
+        raise _fail(path, "[sweep].modes", f"give a non-empty list of evaluation modes from {', '.join(MODES)}")
+    for m in modes:
+        if m not in MODES:
+            raise _fail(path, "[sweep].modes", f"unknown mode '{m}'; modes: {', '.join(MODES)}")
+    if len(set(modes)) != len(modes):
+        raise _fail(path, "[sweep].modes", f"a mode is named twice in {modes}")
+    if "eval" not in steps:
+        raise _fail(path, "[sweep].modes", "evaluation modes need the step 'eval' in [sweep].steps")
+    return list(modes)
+
+
+def _holdout_every(path: Path, head: dict[str, Any], steps: list[str]) -> int:
+    """``[sweep].holdout_every`` (default 0: off), checked: an integer >= 2, with the step 'render'."""
+    k = head.get("holdout_every", 0)
+    if not isinstance(k, int) or isinstance(k, bool) or (k != 0 and k < 2):
+        raise _fail(path, "[sweep].holdout_every", f"{k!r}: give an integer >= 2 (every k-th view is held out of "
+                                                   "the reconstruction) or 0 (none)")
+    if k and "render" not in steps:
+        raise _fail(path, "[sweep].holdout_every", "held-out views are rendered and evaluated: the sweep needs the "
+                                                   "step 'render' in [sweep].steps")
+    return k
 
 
 def _lights(path: Path, head: dict[str, Any]) -> list[str]:
@@ -217,7 +258,7 @@ def _scenes(path: Path, table: dict[str, Any]) -> list[Scene]:
         _check_name(path, where, name)
         if not isinstance(spec, dict):
             raise _fail(path, where, "must be a table (preset, garment, fabric, seed, framing, detail, fit, "
-                                     "looseness; or capture)")
+                                     "looseness, views; or capture)")
         _unknown(path, where, spec, SCENE_KEYS)
         if "capture" in spec:
             if set(spec) & SYNTH_KEYS:
@@ -240,12 +281,16 @@ def _scenes(path: Path, table: dict[str, Any]) -> list[Scene]:
                     raise _fail(path, f"{where}.looseness", f"{v!r}: give the garment's clearance from the body in "
                                                             f"metres, in [{LOOSENESS[0]}, {LOOSENESS[1]}] (or a "
                                                             "list of them)")
+                if key == "views" and (not isinstance(v, int) or isinstance(v, bool)
+                                       or not VIEWS[0] <= v <= VIEWS[1]):
+                    raise _fail(path, f"{where}.views", f"{v!r}: give the number of capture cameras, an integer in "
+                                                        f"[{VIEWS[0]}, {VIEWS[1]}] (or a list of them)")
                 if key in choices and v not in choices[key]:
                     raise _fail(path, f"{where}.{key}", f"unknown {key} {v!r}; choose from {', '.join(choices[key])}")
         varying = [k for k, v in lists.items() if len(v) > 1]
         for combo in itertools.product(*lists.values()):
             values = dict(zip(lists, combo))
-            # detail, fit and looseness enter the spec only when given, so the scene keys of sweeps without them
+            # detail, fit, looseness and views enter the spec only when given, so the scene keys of sweeps without them
             # (and their cached captures) stay as they were
             synth = {"preset": "tiny", "garment": None, "fabric": None, "seed": 0, "framing": None} | values
             suffix = "".join(f"-{k}{values[k]}" if k in NUMERIC_KEYS else f"-{values[k]}" for k in varying)

@@ -38,9 +38,12 @@ def metric_names(records: list[dict[str, Any]], table: Table) -> list[str]:
 
 
 def cells(records: list[dict[str, Any]], table: Table) -> tuple[list[tuple], list[tuple], dict]:
-    """(row labels, column labels, {(row, column, metric): [values]}) in first-seen order."""
+    """(row labels, column labels, {(row, column, metric): [values]}) in first-seen order, over the records that
+    did not fail."""
     rows, cols, values = [], [], {}
     for r in selected(records, table):
+        if r.get("failed"):  # no metrics: listed with the failed tasks, not as an empty row
+            continue
         row = tuple(r.get(k) for k in table.rows)
         col = tuple(r.get(k) for k in table.columns)
         rows += [row] if row not in rows else []

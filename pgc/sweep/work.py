@@ -5,17 +5,23 @@
 key and the resolved configuration without the downstream tables :data:`DOWNSTREAM`), so configurations that
 differ only downstream share one asset. ``OUT/runs/<scene>-<motion>-<key>/``: one run folder per asset, motion and resolved configuration.
 A folder that another configuration's folder could partly reuse starts as a copy of that folder's stage
-caches (:func:`seed_from`): the asset of the scene's first configuration, or the run of the first
-configuration with the same asset and motion. The pipeline's own content keys then decide which stages are
-reused (e.g. mesh, splats and base colour when only the BRDF differs) and which are recomputed.
+caches (:func:`seed_from`): the asset of the scene's first configuration, or the scene's first run on the same
+motion. The pipeline's own content keys then decide which stages are reused (e.g. mesh, splats and base colour
+when only the BRDF differs; the ground-truth renders when the simulation came out the same) and which are
+recomputed.
 ``OUT/results/<task>.json``: each finished task's result; a rerun reads them and runs only what is missing.
+
+With ``holdout_every`` k, each scene's capture is split into ``OUT/captures/<scene>-<key>-train<k>/`` (the views
+that reconstruct) and ``-heldout<k>/`` (every k-th view: the cameras the runs are rendered and evaluated from),
+both holding the capture's ground truth. An evaluation mode other than 'appearance' (which every run task
+evaluates) is a task of its own per run, ``eval-<mode>-<run key>``, evaluating the run under each light.
 """
 
 from __future__ import annotations
 
 import shutil
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +38,13 @@ SEEDED = ("stages", "render", "gt", "relit")
 """Cache folders copied from a donor folder (stage caches, ground-truth renders and the relit runs' own, all
 content-keyed)."""
 LOCK_COMMAND = "pgc sweep"
+
+
+def priority(motion_index: int, motions: int, mode_task: bool = False) -> int:
+    """A run's task priority: breadth first, every scene's run on the first motion before any on the second;
+    the mode tasks after every run (the independent truth simulation is the costly part). A sweep stopped early
+    then has its scenes and seeds covered on the first motions, with their appearance metrics."""
+    return -motion_index - (motions if mode_task else 0)
 
 
 def asset_config_key(cfg: Any) -> str:
@@ -58,6 +71,8 @@ class Unit:
     capture: str
     asset_task: str
     run_task: str | None
+    mode_tasks: dict[str, str] = field(default_factory=dict)
+    """Evaluation mode -> the task whose result holds its metrics (``appearance``: the run task)."""
 
 
 def plan(sweep: Sweep, out: Path) -> tuple[list[Task], list[Unit], dict[str, Any]]:
@@ -66,7 +81,7 @@ def plan(sweep: Sweep, out: Path) -> tuple[list[Task], list[Unit], dict[str, Any
     done: dict[str, Any] = {}
     units: list[Unit] = []
 
-    def add(key: str, fn: Any, args: tuple, deps: list[str]) -> str:
+    def add(key: str, fn: Any, args: tuple, deps: list[str], priority: int = 0) -> str:
         if key in tasks or key in done:
             return key
         cached = read_result(out, key)
@@ -74,14 +89,14 @@ def plan(sweep: Sweep, out: Path) -> tuple[list[Task], list[Unit], dict[str, Any
             done[key] = cached
             return key
         args = args + tuple(done[d] for d in deps if d in done)
-        tasks[key] = Task(key, fn, args, tuple(d for d in deps if d not in done))
+        tasks[key] = Task(key, fn, args, tuple(d for d in deps if d not in done), priority)
         return key
 
     root = sweep.path.parent
     motions = [str((root / m).resolve()) if (root / m).exists() else m for m in sweep.motions]
     for scene in sweep.scenes:
         first_asset: tuple[str, Path] | None = None
-        first_run: dict[tuple[str, str], tuple[str, Path]] = {}
+        first_run: dict[str, tuple[str, Path]] = {}  # motion -> the scene's first run on it
         for conf in sweep.configurations:
             skey = scene_key(scene, conf.cfg)  # configurations with one scene renderer share the capture
             if scene.synth is not None:
@@ -91,7 +106,17 @@ def plan(sweep: Sweep, out: Path) -> tuple[list[Task], list[Unit], dict[str, Any
                 cap_deps = [cap_task]
             else:
                 capture, cap_deps = scene.capture, []
-            akey = content_key("asset", skey, asset_config_key(conf.cfg))
+            eval_capture = capture
+            if sweep.holdout_every:
+                k = sweep.holdout_every
+                train = out / "captures" / f"{scene.name}-{skey}-train{k}"
+                eval_capture = out / "captures" / f"{scene.name}-{skey}-heldout{k}"
+                split_key = f"split-{skey}-{k}"
+                cap_deps = [add(split_key, make_split, (str(capture), str(train), str(eval_capture), k, split_key,
+                                                        str(out)), cap_deps)]
+                capture = train
+            akey = content_key("asset", skey, asset_config_key(conf.cfg),
+                               *((f"train{sweep.holdout_every}",) if sweep.holdout_every else ()))
             asset = out / "assets" / f"{scene.name}-{akey}"
             donor = first_asset if first_asset and first_asset[0] != f"asset-{akey}" else None
             asset_task = add(f"asset-{akey}", make_asset,
@@ -101,17 +126,22 @@ def plan(sweep: Sweep, out: Path) -> tuple[list[Task], list[Unit], dict[str, Any
             if "animate" not in sweep.steps:
                 units.append(Unit(scene, conf, None, str(capture), asset_task, None))
                 continue
-            for motion_name, motion in zip(sweep.motions, motions):
+            for i, (motion_name, motion) in enumerate(zip(sweep.motions, motions)):
                 rkey = content_key("run", akey, motion, conf.cfg.to_dict(), sweep.steps, sweep.lights)
                 run = out / "runs" / f"{scene.name}-{Path(motion_name).stem.replace(':', '-')}-{rkey}"
-                rdonor = first_run.get((asset_task, motion))
+                rdonor = first_run.get(motion)
                 rdonor = rdonor if rdonor and rdonor[0] != f"run-{rkey}" else None
                 run_task = add(f"run-{rkey}", make_run,
-                               (str(asset), str(capture), motion, str(run), conf.data, conf.source, sweep.steps,
+                               (str(asset), str(eval_capture), motion, str(run), conf.data, conf.source, sweep.steps,
                                 sweep.lights, str(rdonor[1]) if rdonor else None, str(out)),
-                               [asset_task] + ([rdonor[0]] if rdonor else []))
-                first_run.setdefault((asset_task, motion), (run_task, run))
-                units.append(Unit(scene, conf, motion_name, str(capture), asset_task, run_task))
+                               [asset_task] + ([rdonor[0]] if rdonor else []), priority(i, len(motions)))
+                first_run.setdefault(motion, (run_task, run))
+                modes = {m: run_task if m == "appearance" else
+                         add(f"eval-{m}-{rkey}", make_mode_eval, (str(run), str(eval_capture), conf.data, conf.source,
+                                                                  sweep.lights, m, str(out)), [run_task],
+                             priority(i, len(motions), mode_task=True))
+                         for m in (sweep.modes if "eval" in sweep.steps else ())}
+                units.append(Unit(scene, conf, motion_name, str(eval_capture), asset_task, run_task, modes))
     return list(tasks.values()), units, done
 
 
@@ -151,15 +181,15 @@ def seed_from(donor: str | None, folder: Path) -> bool:
 def make_capture(synth: dict[str, Any], folder: str, data: dict[str, Any], source: str, out: str,
                  *deps: Any) -> dict[str, Any]:
     """Generate the synthetic capture of a scene spec (``preset``, ``garment``, ``fabric``, ``seed``, ``framing``,
-    and ``detail``, ``fit``, ``looseness`` where given; a missing or None value keeps the preset's) with the scene
-    renderer of the configuration ``data``, as ``pgc synth --config`` does with the same options."""
+    and ``detail``, ``fit``, ``looseness``, ``views`` where given; a missing or None value keeps the preset's) with
+    the scene renderer of the configuration ``data``, as ``pgc synth --config`` does with the same options."""
     from pgc.synth.generate import generate, get_preset
     from pgc.synth.render import scene_renderer
 
     start = time.perf_counter()
     cfg = _config(data, source)
     renderer = scene_renderer(cfg)
-    preset = get_preset(synth["preset"], framing=synth.get("framing"))
+    preset = get_preset(synth["preset"], framing=synth.get("framing"), views=synth.get("views"))
     generate(folder, preset, garment=synth.get("garment"), fabric=synth.get("fabric"), seed=synth["seed"],
              looseness=synth.get("looseness"), detail=synth.get("detail"), fit=synth.get("fit"), renderer=renderer,
              body_model=cfg.create("body_model"))
@@ -192,6 +222,61 @@ def make_asset(capture: str, folder: str, data: dict[str, Any], source: str, don
     return _finish(out, f"asset-{Path(folder).name.rsplit('-', 1)[1]}", result)
 
 
+def make_split(capture: str, train: str, heldout: str, every: int, key: str, out: str, *deps: Any) -> dict[str, Any]:
+    """Split ``capture`` into the view subsets ``train`` and ``heldout`` (every ``every``-th view, from view
+    ``every - 1``): each a capture folder of hard links (copies where links fail) to the capture's files, its
+    ``transforms.json`` listing its own views, and every file that belongs to no view (the ground truth)."""
+    from pgc.splats.fitplan import heldout_split
+
+    start = time.perf_counter()
+    doc = read_json(Path(capture) / "transforms.json", "transforms.json")
+    frames = doc.get("frames") if isinstance(doc, dict) else None
+    if not isinstance(frames, list):
+        raise PGCDataError(f"{capture}/transforms.json: no list 'frames'; generate the capture again")
+    train_ids, held_ids = heldout_split(len(frames), every)
+    if not held_ids:
+        raise PGCDataError(f"{capture}: {len(frames)} views are too few to hold out every {every}th view (need "
+                           f"{2 * every}); lower [sweep].holdout_every")
+    view_files = [set(_paths_in(f)) for f in frames]
+    for folder, ids in ((train, train_ids), (heldout, held_ids)):
+        dropped = set().union(*(view_files[i] for i in range(len(frames)) if i not in ids))
+        _link_capture(Path(capture), Path(folder), dropped, doc | {"frames": [frames[i] for i in ids]})
+    return _finish(out, key, {"train": train, "heldout": heldout, "views_train": len(train_ids),
+                              "views_heldout": len(held_ids), "seconds": time.perf_counter() - start})
+
+
+def _paths_in(value: Any) -> list[str]:
+    """Every string inside a transforms.json frame (its files' relative paths, and its name)."""
+    if isinstance(value, str):
+        return [value]
+    if isinstance(value, dict):
+        return [p for v in value.values() for p in _paths_in(v)]
+    if isinstance(value, list):
+        return [p for v in value for p in _paths_in(v)]
+    return []
+
+
+def _link_capture(src: Path, dst: Path, dropped: set[str], doc: dict[str, Any]) -> None:
+    """``dst``: ``src``'s files except ``dropped`` (relative paths) and transforms.json, linked, then ``doc`` as its
+    transforms.json (written last, so that a reader never sees a half-made capture)."""
+    import os
+
+    from pgc.io.atomic import write_json
+
+    if dst.exists():  # an interrupted split: made again
+        shutil.rmtree(dst)
+    for path in sorted(p for p in src.rglob("*") if p.is_file()):
+        rel = path.relative_to(src)
+        if rel.as_posix() in dropped or rel.as_posix() == "transforms.json":
+            continue
+        (dst / rel).parent.mkdir(parents=True, exist_ok=True)
+        try:
+            os.link(path, dst / rel)
+        except OSError:  # another file system: a copy
+            shutil.copy2(path, dst / rel)
+    write_json(dst / "transforms.json", doc)
+
+
 def make_run(asset: str, capture: str, motion: str, folder: str, data: dict[str, Any], source: str,
              steps: list[str], lights: list[str], donor: str | None, out: str, *deps: Any) -> dict[str, Any]:
     """Animate one asset on one motion, then render and evaluate it as ``steps`` say, under each of ``lights``
@@ -217,3 +302,42 @@ def make_run(asset: str, capture: str, motion: str, folder: str, data: dict[str,
                 metrics[name] = {v: {k: x for k, x in ev[v].items() if k != "per_frame"} for v in VARIANTS}
     result = {"run": folder, "seeded": seeded, "seconds": seconds, "metrics": metrics}
     return _finish(out, f"run-{Path(folder).name.rsplit('-', 1)[1]}", result)
+
+
+TRUTH_SIM_CACHE = ("gt", "truth_sim")
+"""Where a run folder caches its independent truth simulation (:func:`pgc.pipeline.independent.truth_simulation`):
+a relit run shares the run's simulation and body, so it is given the run's cache files before it is evaluated
+(the cache's own key still decides whether they are used)."""
+
+
+def make_mode_eval(run: str, capture: str, data: dict[str, Any], source: str, lights: list[str], mode: str, out: str,
+                   *deps: Any) -> dict[str, Any]:
+    """Evaluate the rendered run ``run`` in evaluation ``mode`` under each of ``lights`` (the run itself for the
+    capture light, its relit runs for the others), after the run task; ``metrics``: light -> variant -> metric."""
+    import os
+
+    from pgc.io.lock import FolderLock
+    from pgc.pipeline.evaluate import VARIANTS, evaluate_run
+    from pgc.pipeline.relight import RELIT_FOLDER
+
+    cfg = _config(data, source)
+    seconds: dict[str, float] = {}
+    metrics: dict[str, dict[str, dict[str, float]]] = {}
+    cache = Path(run).joinpath(*TRUTH_SIM_CACHE)
+    with FolderLock(run, LOCK_COMMAND):
+        for name in lights:
+            folder = Path(run) if name == "capture" else Path(run) / RELIT_FOLDER / name
+            if folder != Path(run) and cache.is_dir():
+                target = folder.joinpath(*TRUTH_SIM_CACHE)
+                target.mkdir(parents=True, exist_ok=True)
+                for file in cache.iterdir():
+                    if not (target / file.name).exists():
+                        os.link(file, target / file.name)
+            start = time.perf_counter()
+            ev = evaluate_run(folder, capture, cfg, mode=mode)
+            seconds[f"eval_{mode}"] = seconds.get(f"eval_{mode}", 0.0) + time.perf_counter() - start
+            metrics[name] = {v: {k: x for k, x in ev[v].items() if k != "per_frame"} for v in VARIANTS}
+            if not cache.is_dir() and folder.joinpath(*TRUTH_SIM_CACHE).is_dir():
+                cache = folder.joinpath(*TRUTH_SIM_CACHE)  # the first light computed it
+    result = {"run": run, "mode": mode, "seconds": seconds, "metrics": metrics}
+    return _finish(out, f"eval-{mode}-{Path(run).name.rsplit('-', 1)[1]}", result)
