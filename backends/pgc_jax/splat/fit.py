@@ -2,8 +2,8 @@
 
 XLA specifics: one jitted training step serves every SH degree (higher coefficients are masked, not sliced),
 every view of one image size and every loss weight and Adam epsilon (traced values, not compile-time constants:
-settings that differ in them share one compilation); chunk tables are padded to a capacity that only grows (by >= 25 %), reserved for
-every view before the first step, so a whole fit compiles a handful of times. The Adam update is the shared
+settings that differ in them share one compilation); chunk tables are padded to a capacity that only grows
+(by >= 25 %), reserved for every view before the first step, so a whole fit compiles a handful of times. The Adam update is the shared
 :func:`pgc.splats.fit.adam_update`, traced into the step.
 """
 
