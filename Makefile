@@ -2,10 +2,10 @@
 VENV ?= .venv
 PRESET ?= default
 OUT ?= runs/demo-$(PRESET)
-# TEST_WORKERS=2 runs the suite on two pytest-xdist workers, a test file per worker at a time (module fixtures
-# built once; tests/conftest.py gives each worker's torch its share of the cores). 0: one process (the default
-# until tests/test_kill.py is shown to hold its timing beside a second worker).
-TEST_WORKERS ?= 0
+# The suite runs on TEST_WORKERS pytest-xdist workers (CI's machine has 2 cores), a test file per worker at a
+# time (module fixtures built once; tests/conftest.py gives each worker's torch its share of the cores).
+# TEST_WORKERS=0: one process. Its cost: docs/architecture.md, "Running the tests".
+TEST_WORKERS ?= 2
 PYTEST = $(VENV)/bin/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 .PHONY: setup demo test test-fast

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import fcntl
 import os
+import resource
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +41,56 @@ def pytest_configure(config: pytest.Config) -> None:
         except ImportError:
             return
         torch.set_num_threads(max(1, (os.cpu_count() or 1) // workers))
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption("--cpu-durations", type=int, default=None, metavar="N",
+                     help="report the N tests that took the most CPU seconds (setup, call and teardown; the "
+                          "process's threads and its waited-for subprocesses; 0: all) and the suite's total: on a "
+                          "shared machine, unlike --durations' wall seconds, a cost that load does not inflate")
+
+
+def cpu_seconds() -> float:
+    """CPU seconds (user + system) of this process's threads and of the subprocesses it has waited for."""
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
+CPU_START = pytest.StashKey[float]()
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_setup(item: pytest.Item):
+    if item.config.getoption("--cpu-durations") is not None:
+        item.stash[CPU_START] = cpu_seconds()
+    yield
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
+    """The teardown report carries the test's CPU seconds (as a user property: it reaches the xdist controller)."""
+    if call.when == "teardown" and CPU_START in item.stash:
+        item.user_properties.append(("cpu_seconds", cpu_seconds() - item.stash[CPU_START]))
+    yield
+
+
+def pytest_terminal_summary(terminalreporter, config: pytest.Config) -> None:
+    count = config.getoption("--cpu-durations")
+    if count is None:
+        return
+    costs = [(dict(report.user_properties)["cpu_seconds"], report.nodeid)
+             for reports in terminalreporter.stats.values() for report in reports
+             if getattr(report, "when", None) == "teardown" and "cpu_seconds" in dict(report.user_properties)]
+    costs.sort(reverse=True)
+    files: dict[str, float] = {}
+    for seconds, nodeid in costs:
+        files[nodeid.split("::")[0]] = files.get(nodeid.split("::")[0], 0.0) + seconds
+    terminalreporter.write_sep("=", f"CPU seconds: {sum(s for s, _ in costs):.1f} in {len(costs)} tests")
+    for seconds, name in (costs[:count] if count else costs):
+        terminalreporter.write_line(f"{seconds:8.1f}  {name}")
+    terminalreporter.write_sep("-", "per file")
+    for name, seconds in sorted(files.items(), key=lambda kv: -kv[1])[:count or None]:
+        terminalreporter.write_line(f"{seconds:8.1f}  {name}")
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

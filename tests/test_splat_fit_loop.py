@@ -14,6 +14,10 @@ from pgc.splats.fit import PARAMETERS, FitBackend, FitView, adam_update, converg
 from pgc.splats.fitplan import focus_on_garment, heldout_split, initial_gaussians
 
 FAST = {"gaussians_per_pixel": 0.5, "holdout_every": 4, "log_every": 10, "init_color": "views"}
+XLA = {"compositor": "xla", "tile_size": 8, "chunk_size": 16}
+FUSED = {"compositor": "fused", "threads": 1}
+"""One set of options per JAX compositor: the fits of this file (one image size, one model size) share their
+compilations, which are most of their cost (the loss weights and Adam's epsilon are traced, not compiled in)."""
 ALONG_DB, FINAL_DB = 0.15, 0.25
 """How far torch's and JAX's held-out PSNRs may be apart along a 60-step fit and after it (dB; the schedule
 test's docstring says where they come from)."""
@@ -92,8 +96,7 @@ def test_torch_and_jax_take_the_same_step(scene):
     capture, mesh = scene
     settings = dict(FAST, lambda_surface=0.1, lambda_opacity=0.01)
     torch_steps = first_step(TorchFitBackend(TorchSplatRenderer({"threads": 1})), capture, mesh, settings)
-    jax_steps = first_step(JaxFitBackend(JaxSplatRenderer({"compositor": "fused", "threads": 1})), capture, mesh,
-                           settings)
+    jax_steps = first_step(JaxFitBackend(JaxSplatRenderer(FUSED)), capture, mesh, settings)
     for (loss_t, grads_t), (loss_j, grads_j) in zip(torch_steps, jax_steps, strict=True):
         assert abs(loss_t - loss_j) <= 1e-5 * abs(loss_t)
         for name in PARAMETERS:
@@ -121,8 +124,8 @@ def test_torch_and_jax_follow_the_same_schedule_and_record_the_same_figures(scen
     capture, mesh = scene
     settings = dict(FAST, iterations=60, converge_every=20, converge_db=0.0, adam_eps=1e-8)
     fits = {"torch": TorchSplatRenderer({"threads": 1}).fit(capture, mesh, settings),
-            "jax": JaxSplatRenderer({"compositor": "xla", "tile_size": 8, "chunk_size": 16}).fit(capture, mesh, settings),
-            "jax-fused": JaxSplatRenderer({"compositor": "fused", "threads": 1}).fit(capture, mesh, settings)}
+            "jax": JaxSplatRenderer(XLA).fit(capture, mesh, settings),
+            "jax-fused": JaxSplatRenderer(FUSED).fit(capture, mesh, settings)}
     t = fits["torch"]
     for name in ("jax", "jax-fused"):
         j = fits[name]
@@ -248,8 +251,7 @@ def test_surface_and_opacity_terms_act_in_both_backends(scene):
     capture, mesh = scene
     settings = dict(FAST, iterations=15, converge_db=0.0, select_count=False, select_sh=False, keep="all",
                     prune_weight=0.0, lr_position=2e-3, lr_position_final=2e-3)
-    for renderer in (TorchSplatRenderer({"threads": 1}), JaxSplatRenderer({"compositor": "xla"}),
-                     JaxSplatRenderer({"compositor": "fused"})):
+    for renderer in (TorchSplatRenderer({"threads": 1}), JaxSplatRenderer(XLA), JaxSplatRenderer(FUSED)):
         free = renderer.fit(capture, mesh, dict(settings, lambda_surface=0.0)).gaussians
         held = renderer.fit(capture, mesh, dict(settings, lambda_surface=100.0)).gaussians
         offset = {k: float(np.sqrt(np.mean(g.means[:, 1] ** 2))) for k, g in (("free", free), ("held", held))}

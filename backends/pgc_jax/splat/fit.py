@@ -1,8 +1,9 @@
 """The JAX arrays of the splat fit: :class:`JaxFitBackend` for the loop of :mod:`pgc.splats.fit`.
 
-XLA specifics: one jitted training step serves every SH degree (higher coefficients are masked, not sliced) and
-every view of one image size; chunk tables are padded to a capacity that only grows (by >= 25 %), reserved for
-every view before the first step, so a whole fit compiles a handful of times. The Adam update is the shared
+XLA specifics: one jitted training step serves every SH degree (higher coefficients are masked, not sliced),
+every view of one image size and every loss weight and Adam epsilon (traced values, not compile-time constants:
+settings that differ in them share one compilation); chunk tables are padded to a capacity that only grows
+(by >= 25 %), reserved for every view before the first step, so a whole fit compiles a handful of times. The Adam update is the shared
 :func:`pgc.splats.fit.adam_update`, traced into the step.
 """
 
@@ -97,29 +98,38 @@ def _contributions(params, frames, parent, sh_mask, cam, background, bins, *, wi
     return jax.grad(red)(zero)[:, 0]
 
 
-@partial(jax.jit, static_argnames=("width", "height", "tile", "near", "threads", "lambda_l1", "lambda_mask",
-                                   "lambda_surface", "lambda_opacity", "adam_eps"))
-def _train_step(params, adam, t, lrs, frames, parent, sh_mask, cam, background, target, mask, band, bins, *, width,
-                height, tile, near, threads, lambda_l1, lambda_mask, lambda_surface, lambda_opacity, adam_eps):
-    """One Adam step (number ``t`` >= 1) on one view; returns new params, Adam state, loss and the sRGB MSE."""
+def _weights(s: FitSplatsSettings, dtype) -> dict[str, jnp.ndarray]:
+    """The loss weights and Adam epsilon of ``s`` as traced scalars (``ssim``: 1 - lambda_l1, rounded once, as a
+    Python float would be)."""
+    return {k: jnp.asarray(v, dtype) for k, v in (("l1", s.lambda_l1), ("ssim", 1.0 - s.lambda_l1),
+                                                  ("mask", s.lambda_mask), ("surface", s.lambda_surface),
+                                                  ("opacity", s.lambda_opacity), ("adam_eps", s.adam_eps))}
+
+
+@partial(jax.jit, static_argnames=("width", "height", "tile", "near", "threads"))
+def _train_step(params, adam, t, lrs, frames, parent, sh_mask, cam, background, target, mask, band, bins, weights, *,
+                width, height, tile, near, threads):
+    """One Adam step (number ``t`` >= 1) on one view with the :func:`_weights` ``weights``; returns new params, Adam
+    state, loss and the sRGB MSE. A zero weight adds an exact zero to the loss and its gradients."""
     n = params["means"].shape[0]
     ones = jnp.ones((n,), target.dtype)
     probe = None if bins is None else jnp.zeros((n, 3), target.dtype)
+    w = weights
 
     def loss_fn(p):
         color, alpha = _render(p, frames, parent, ones, sh_mask, cam, background, bins, probe, width=width,
                                height=height, tile=tile, near=near, threads=threads)
         pred = linear_to_srgb(color)
-        loss = lambda_l1 * jnp.mean(jnp.abs(pred - target)) + (1.0 - lambda_l1) * (1.0 - mean_ssim(pred, target))
-        surface = lambda_surface * jnp.mean(p["means"][:, 1] ** 2) if lambda_surface else 0.0
-        fade = lambda_opacity * jnp.mean(jax.nn.sigmoid(p["opacity_logits"])) if lambda_opacity else 0.0
-        return loss + lambda_mask * jnp.mean(band * jnp.abs(mask - alpha)) + surface + fade, pred
+        loss = w["l1"] * jnp.mean(jnp.abs(pred - target)) + w["ssim"] * (1.0 - mean_ssim(pred, target))
+        surface = w["surface"] * jnp.mean(p["means"][:, 1] ** 2)
+        fade = w["opacity"] * jnp.mean(jax.nn.sigmoid(p["opacity_logits"]))
+        return loss + w["mask"] * jnp.mean(band * jnp.abs(mask - alpha)) + surface + fade, pred
 
     (loss, pred), grads = jax.value_and_grad(loss_fn, has_aux=True)(params)
     new_p, new_m, new_v = {}, {}, {}
     for name in params:
         new_p[name], new_m[name], new_v[name] = adam_update(params[name], grads[name], adam["m"][name],
-                                                            adam["v"][name], t, lrs[name], adam_eps)
+                                                            adam["v"][name], t, lrs[name], w["adam_eps"])
     return new_p, {"m": new_m, "v": new_v}, loss, jnp.mean((pred - target) ** 2)
 
 
@@ -193,9 +203,7 @@ class JaxFitBackend(FitBackend):
         self.params, self.adam, loss, mse = _train_step(
             self.params, self.adam, float(t), lrs, self.frames, self.parent, _sh_mask(degree, self.dtype),
             handle.cam, handle.background, handle.target, handle.mask, handle.band, self._bins(handle),
-            **self._kw(handle), lambda_l1=float(s.lambda_l1), lambda_mask=float(s.lambda_mask),
-            lambda_surface=float(s.lambda_surface), lambda_opacity=float(s.lambda_opacity),
-            adam_eps=float(s.adam_eps))
+            _weights(s, self.dtype), **self._kw(handle))
         return loss, mse
 
     def render(self, handle: _Arrays, degree: int, keep: np.ndarray | None = None) -> np.ndarray:
