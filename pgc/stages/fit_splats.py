@@ -4,6 +4,6 @@ garment's are kept in the asset). Its settings live with the role's contract, wh
 from pgc.roles.splat_renderer import FitSplatsSettings
 from pgc.stages.declaration import Stage
 
-STAGE = Stage(name="fit_splats", command="reconstruct", version="3", inputs=("capture", "mesh"),
+STAGE = Stage(name="fit_splats", command="reconstruct", version="4", inputs=("capture", "mesh"),
               outputs=("gaussians_full.npz", "heldout_views.json"), folder="ASSET/stages/fit_splats",
               role="splat_renderer", settings=FitSplatsSettings, events=("fit_splats",))
