@@ -329,6 +329,22 @@ def test_clip_on_a_body_starts_in_the_capture_pose(rig):
     assert np.abs(joints[-1] - rest).max() > 0.1  # it moves
 
 
+def test_an_in_place_walk_keeps_its_root_over_the_capture_position_and_its_pose(rig):
+    """In place: the root's horizontal travel is gone, its height and every joint's place relative to the root
+    are the walk's own (the walk itself travels more than a metre in two seconds)."""
+    from pgc.motion.drive import ClipOptions, clip_body_motion
+    from pgc.synth.body import SynthBody
+
+    rest = rig.rest
+    body = SynthBody("joints", {}, rest, np.array([[0, 1, 2]]), rest, rig.parents, np.eye(len(rig.names)), rig.names)
+    walking = clip_body_motion(CMU / "02_01.amc", body, seconds=2.0).vertices
+    held = clip_body_motion(CMU / "02_01.amc", body, ClipOptions(in_place=True), seconds=2.0).vertices
+    assert np.abs(walking[-1, 0, [0, 2]] - walking[0, 0, [0, 2]]).max() > 1.0
+    np.testing.assert_allclose(held[:, 0, [0, 2]], held[:1, 0, [0, 2]].repeat(len(held), 0), atol=1e-6)
+    np.testing.assert_allclose(held[:, 0, 1], walking[:, 0, 1], atol=1e-6)
+    np.testing.assert_allclose(held - held[:, :1], walking - walking[:, :1], atol=1e-5)
+
+
 def hanging_arm_angles(motion: RigMotion, rig: Rig) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Per side: the upper arm's angle (degrees, outward positive) from the chest's down axis seen from the front,
     and whether it hangs (points down, not across the body), per frame."""

@@ -27,7 +27,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                "cmu:02_04 (jump), cmu:02_05 (punch); files, credit and terms in pgc/data/motions/cmu.\n\n"
                "examples:\n"
                "  pgc animate runs/asset --motion spooky --out runs/spooky\n"
-               "  pgc animate runs/asset --motion cmu:02_01 --out runs/walk\n"
+               "  pgc animate runs/asset --motion cmu:02_01 --in-place --out runs/walk\n"
                "  pgc animate runs/asset --motion take.amc --skeleton actor.asf --clip-fps 60 --out runs/take\n"
                "  pgc animate runs/asset --motion take.bvh --joint-map names.json --out runs/take",
         formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -47,6 +47,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--joint-map", metavar="FILE",
                    help="JSON object of clip joint -> rig joint names, for a clip whose joints the known maps "
                         "(CMU ASF, CMU and Mixamo-style BVH, SMPL) do not cover")
+    p.add_argument("--in-place", action="store_true",
+                   help="hold a clip's root over the capture position (its horizontal travel removed), so that a "
+                        "walk stays in view of the capture's fixed cameras (as pgc demo does)")
     add_run_options(p)
     p.set_defaults(func=run)
 
@@ -63,10 +66,10 @@ def run(args: argparse.Namespace) -> int:
     out = check_out_folder(args.out)
     check_not_inside(out, args.asset, "asset folder")
     clip = ClipOptions(Path(args.skeleton) if args.skeleton else None, args.clip_fps, args.clip_unit,
-                       Path(args.joint_map) if args.joint_map else None)
+                       Path(args.joint_map) if args.joint_map else None, args.in_place)
     if clip != ClipOptions() and not is_clip(args.motion):
-        raise PGCDataError(f"--skeleton, --clip-fps, --clip-unit and --joint-map are for captured clips (.amc, "
-                           f".bvh, AMASS .npz); '{args.motion}' is not one")
+        raise PGCDataError(f"--skeleton, --clip-fps, --clip-unit, --joint-map and --in-place are for captured clips "
+                           f"(.amc, .bvh, AMASS .npz); '{args.motion}' is not one")
     registry, reporter = reporter_for(args)
     cfg = load_config(args, registry)
     asset = read_asset(args.asset)  # manifest, hashes and every file checked before any work

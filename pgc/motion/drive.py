@@ -43,7 +43,8 @@ def shipped_clip(spec: str) -> Path:
 
 @dataclass(frozen=True)
 class ClipOptions:
-    """How to read a clip: an AMC's skeleton and frame rate, a BVH's length unit (None: the defaults)."""
+    """How to read a clip: an AMC's skeleton and frame rate, a BVH's length unit (None: the defaults), and whether
+    it moves in place."""
 
     skeleton: Path | None = None
     """The ASF of an AMC (default: the subject's beside it, ``02_01.amc`` -> ``02.asf``)."""
@@ -53,6 +54,14 @@ class ClipOptions:
     """Metres per BVH length unit (default: centimetres)."""
     joint_map: Path | None = None
     """A JSON file of clip joint -> rig joint names (default: the known map that fits both skeletons)."""
+    in_place: bool = False
+    """Hold the root over the capture position (:func:`pgc.motion.retarget.in_place`): a walk stays in view of
+    the capture's fixed cameras."""
+
+
+EVALUATED_CLIP = ClipOptions(in_place=True)
+"""How ``pgc demo`` and the sweeps read a clip that they evaluate: in place, since their ground truth is seen by the
+capture's fixed cameras, which a walk would leave."""
 
 
 def is_clip(spec: str | Path) -> bool:
@@ -109,12 +118,15 @@ def clip_body_motion(path: str | Path, body, options: ClipOptions = ClipOptions(
     ``arm_space_deg``: see :func:`pgc.motion.retarget.keep_arms_clear` (None: its default; 0: arms as captured);
     ``pose_body``: the ``smplx`` body model that an AMASS pose clip needs for its skeleton."""
     from pgc.motion.joint_maps import read_joint_map
-    from pgc.motion.retarget import ARM_SPACE_DEG, Rig, keep_arms_clear, resample, retarget, start_at_capture, trim
+    from pgc.motion.retarget import (ARM_SPACE_DEG, Rig, in_place, keep_arms_clear, resample, retarget,
+                                      start_at_capture, trim)
 
     clip = load_clip(path, options, pose_body)
     joint_map = None if options.joint_map is None else read_joint_map(options.joint_map)
     rig = Rig(tuple(body.joint_names), np.asarray(body.parents), np.asarray(body.joints, np.float64))
     motion = start_at_capture(trim(resample(retarget(clip, rig, joint_map), SIM_FPS), seconds), rig)
+    if options.in_place:
+        motion = in_place(motion)
     space = ARM_SPACE_DEG if arm_space_deg is None else arm_space_deg
     if space > 0:
         motion = keep_arms_clear(motion, rig, space)

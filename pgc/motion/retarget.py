@@ -169,6 +169,14 @@ SHOULDERS: dict[str, float] = {"lhumerus": 1.0, "rhumerus": -1.0, "LeftArm": 1.0
 """Upper-arm joints of the known rigs, with the side (+1: the person's left, +X)."""
 
 
+def in_place(motion: RigMotion) -> RigMotion:
+    """The motion with its root held over the capture position: the horizontal (x, z) root translation removed,
+    the height kept, so that a walk or a run stays in front of fixed cameras (a treadmill's view)."""
+    translation = motion.root_translation.copy()
+    translation[:, [0, 2]] = 0.0
+    return RigMotion(motion.rotations, translation, motion.fps)
+
+
 def keep_arms_clear(motion: RigMotion, rig: Rig, min_deg: float = ARM_SPACE_DEG) -> RigMotion:
     """``motion`` with each hanging upper arm (the rig's joints among :data:`SHOULDERS`) turned outward about the
     chest's forward axis where, seen from the front, it is less than ``min_deg`` from the chest's down axis.

@@ -1,7 +1,7 @@
 """``pgc demo``: the whole pipeline on a synthetic scene, measured against its ground truth.
 
 synthetic capture -> reconstruct -> animate on the paper's three test motions (goalpost, spooky, arms-up) and
-a shipped CMU clip (:data:`DEMO_CLIP`) -> hybrid render -> ground-truth renders of the same simulated geometry
+a shipped CMU clip (:data:`DEMO_CLIP`, in place) -> hybrid render -> ground-truth renders of the same simulated geometry
 -> metrics -> report, under the capture light and, on :data:`RELIT_MOTIONS`, under novel lights
 (:mod:`pgc.pipeline.relight`: the motion's relit runs, ``runs/MOTION/relit/LIGHT/``, with their own truth).
 Every step is cached, so a rerun after an interruption resumes; ``metrics.json`` and ``report.html`` land in OUT.
@@ -76,6 +76,7 @@ def run_demo(out: str | Path, preset: str = "default", user_config: str | Path |
     light's means over ``relit_motions`` (the capture light's too, so that they compare like with like).
     ``lights``: names of :data:`pgc.pipeline.relight.EVAL_LIGHTS` (default all; the capture light always)."""
     from pgc.io.timings import read_timings
+    from pgc.motion.drive import EVALUATED_CLIP
     from pgc.pipeline.animate import animate
     from pgc.pipeline.reconstruct import reconstruct
     from pgc.pipeline.relight import EVAL_LIGHTS, check_light_names, render_and_evaluate
@@ -117,7 +118,7 @@ def run_demo(out: str | Path, preset: str = "default", user_config: str | Path |
 
     for motion in motions:
         run = out / "runs" / motion
-        timed("animate", lambda: animate(out / "asset", motion, run, cfg, capture, reporter))
+        timed("animate", lambda: animate(out / "asset", motion, run, cfg, capture, reporter, EVALUATED_CLIP))
         for name in names if motion in relit_motions else ("capture",):
             results[name][motion] = render_and_evaluate(run, capture, cfg, EVAL_LIGHTS[name], out / "lights",
                                                         reporter, decide_once, timings)

@@ -283,6 +283,7 @@ def make_run(asset: str, capture: str, motion: str, folder: str, data: dict[str,
     (:data:`pgc.pipeline.relight.EVAL_LIGHTS`; novel lights in the run's relit runs, their environment maps in
     ``OUT/lights/``). ``metrics``: light -> variant -> metric."""
     from pgc.io.lock import FolderLock
+    from pgc.motion.drive import EVALUATED_CLIP
     from pgc.pipeline.animate import animate
     from pgc.pipeline.evaluate import VARIANTS
     from pgc.pipeline.relight import EVAL_LIGHTS, render_and_evaluate
@@ -293,7 +294,7 @@ def make_run(asset: str, capture: str, motion: str, folder: str, data: dict[str,
     metrics: dict[str, dict[str, dict[str, float]]] = {}
     with FolderLock(folder, LOCK_COMMAND):
         start = time.perf_counter()
-        animate(asset, motion, folder, cfg, capture)
+        animate(asset, motion, folder, cfg, capture, clip=EVALUATED_CLIP)
         seconds["animate"] = time.perf_counter() - start
         for name in lights if "render" in steps else ():
             ev = render_and_evaluate(Path(folder), Path(capture) if "eval" in steps else None, cfg, EVAL_LIGHTS[name],
