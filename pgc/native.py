@@ -30,8 +30,9 @@ class NativeLibraryUnavailable(PGCPluginError):
 
 def cache_dir() -> Path:
     """Folder of the built libraries: ``$PGC_CACHE_DIR/kernels`` (default ``~/.cache/pgc/kernels``)."""
-    root = os.environ.get("PGC_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "pgc")
-    return Path(root) / "kernels"
+    from pgc.user_cache import user_cache_dir
+
+    return user_cache_dir() / "kernels"
 
 
 def library_path(source: Path, flags: Sequence[str] = DEFAULT_FLAGS) -> Path:

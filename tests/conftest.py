@@ -31,6 +31,9 @@ def overlapping_gaussians(n: int, seed: int, sh_k: int = 16) -> WorldGaussians:
                           opacities=rng.uniform(0.05, 1.0, n), sh=rng.normal(0, 0.4, (n, sh_k, 3)))
 
 
+os.environ.setdefault("PGC_CAPTURE_CACHE", "off")  # no test fills the user's capture cache (tests of it set their own)
+
+
 def pytest_configure(config: pytest.Config) -> None:
     """Under pytest-xdist (``make test`` runs ``-n 2``), each worker's torch gets its share of the cores, so two
     workers never run more torch threads than there are cores."""

@@ -120,7 +120,12 @@ def test_make_capture_passes_the_scene_spec_as_pgc_synth_does(tmp_path, monkeypa
     from pgc.synth.generate import get_preset
 
     calls = []
-    monkeypatch.setattr(generate_mod, "generate", lambda folder, preset, **kw: calls.append((preset, kw)))
+
+    def generate(folder, preset, **kw):
+        Path(folder).mkdir(parents=True, exist_ok=True)
+        calls.append((preset, kw))
+
+    monkeypatch.setattr(generate_mod, "generate", generate)
     spec = {"preset": "knit", "garment": None, "fabric": "fleece", "seed": 2, "framing": "body", "detail": "seams",
             "fit": "loose", "looseness": 0.03}
     make_capture(spec, str(tmp_path / "captures" / "k-abc"), {}, "(test)", str(tmp_path))

@@ -19,7 +19,6 @@ from pgc import config as config_mod
 from pgc.errors import PGCConfigError
 from pgc.events import Reporter
 from pgc.io.atomic import write_json
-from pgc.pipeline.cache import content_key
 
 PAPER_MOTIONS = ("goalpost", "spooky", "arms-up")
 DEMO_CLIP = "cmu:02_01"
@@ -43,28 +42,21 @@ def demo_config(preset: str, user_config: str | Path | None = None, registry=Non
     return config_mod.resolve(data, registry, source=str(user_config or preset_file))
 
 
-SYNTH_KEY_FILE = ".pgc-synth-key"
-"""Written into a generated capture folder: the key of what generated it (:func:`synthetic_capture`)."""
-
-
 def synthetic_capture(folder: Path, preset: str, seed: int, cfg: config_mod.RunConfig,
                       reporter: Reporter | None = None) -> bool:
-    """Generate the synthetic capture of ``preset`` and ``seed`` into ``folder`` with ``cfg``'s scene renderer,
-    unless the folder already holds it: its key (the preset's settings, the seed and the scene renderer's
-    implementation, options and version, and the body model's) is kept in ``folder/.pgc-synth-key``. Returns
-    whether it generated."""
+    """The synthetic capture of ``preset`` and ``seed`` in ``folder``, made by ``cfg``'s scene renderer and body
+    model: generated, or copied from the capture cache (:mod:`pgc.pipeline.capture_cache`), unless the folder
+    already holds it. Returns whether the folder was (re)filled."""
+    from pgc.pipeline.capture_cache import cached_capture, generator_classes
     from pgc.synth.generate import generate, get_preset
     from pgc.synth.render import scene_renderer
 
-    key = content_key("synth", asdict(get_preset(preset)), seed, cfg.role_key("scene_renderer"),
-                      cfg.role_key("body_model"))
-    marker = Path(folder) / SYNTH_KEY_FILE
-    if marker.is_file() and marker.read_text() == key:
-        return False
-    generate(folder, preset=preset, seed=seed, reporter=reporter, renderer=scene_renderer(cfg),
-             body_model=cfg.create("body_model"))
-    marker.write_text(key)
-    return True
+    def make(path: Path) -> None:
+        generate(path, preset=preset, seed=seed, reporter=reporter, renderer=scene_renderer(cfg),
+                 body_model=cfg.create("body_model"))
+
+    parts = ("demo", asdict(get_preset(preset)), seed, cfg.role_key("scene_renderer"), cfg.role_key("body_model"))
+    return cached_capture(folder, parts, make, *generator_classes(cfg))
 
 
 def run_demo(out: str | Path, preset: str = "default", user_config: str | Path | None = None,

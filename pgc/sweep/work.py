@@ -183,16 +183,24 @@ def make_capture(synth: dict[str, Any], folder: str, data: dict[str, Any], sourc
     """Generate the synthetic capture of a scene spec (``preset``, ``garment``, ``fabric``, ``seed``, ``framing``,
     and ``detail``, ``fit``, ``looseness``, ``views`` where given; a missing or None value keeps the preset's) with
     the scene renderer of the configuration ``data``, as ``pgc synth --config`` does with the same options."""
+    from dataclasses import asdict
+
+    from pgc.pipeline.capture_cache import cached_capture, generator_classes
     from pgc.synth.generate import generate, get_preset
     from pgc.synth.render import scene_renderer
 
     start = time.perf_counter()
     cfg = _config(data, source)
-    renderer = scene_renderer(cfg)
     preset = get_preset(synth["preset"], framing=synth.get("framing"), views=synth.get("views"))
-    generate(folder, preset, garment=synth.get("garment"), fabric=synth.get("fabric"), seed=synth["seed"],
-             looseness=synth.get("looseness"), detail=synth.get("detail"), fit=synth.get("fit"), renderer=renderer,
-             body_model=cfg.create("body_model"))
+    overrides = {k: synth.get(k) for k in ("garment", "fabric", "looseness", "detail", "fit")}
+
+    def make(path: Path) -> None:
+        generate(path, preset, seed=synth["seed"], renderer=scene_renderer(cfg), body_model=cfg.create("body_model"),
+                 **overrides)
+
+    parts = ("sweep", asdict(preset), overrides, synth["seed"], cfg.role_key("scene_renderer"),
+             cfg.role_key("body_model"))
+    cached_capture(folder, parts, make, *generator_classes(cfg))
     key = f"capture-{Path(folder).name.rsplit('-', 1)[1]}"
     return _finish(out, key, {"capture": folder, "seconds": time.perf_counter() - start})
 
