@@ -12,7 +12,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "demo", help="the whole pipeline on the default synthetic scene",
         description="Generate a synthetic capture with ground truth, reconstruct the garment asset, simulate "
                     "it on the paper's three test motions (goalpost, spooky, arms-up) and a captured CMU walk "
-                    "(cmu:02_01) on the capture's Anny body, render the hybrid and the ablations, render the "
+                    "(cmu:02_01, in place) on the capture's Anny body, render the hybrid and the ablations, render the "
                     "ground truth on the same simulated geometry, and evaluate, under the capture light and, on "
                     "spooky (--relit-motions), under two novel lights (a sky turned 90 degrees and a low key "
                     "light; relit frames and truth in OUT/runs/MOTION/relit/LIGHT). Writes OUT/metrics.json "
@@ -22,7 +22,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                "  tiny     6 views at 64 px, about 30 s; for tests\n"
                "  default  the demo scene: a striped cotton tee (a fibre truth) resting on the body, with seams,\n"
                "           hems, a patch pocket and folds as geometry; 128 views at 192 px framing the garment;\n"
-               "           about 16 min\n"
+               "           about 20 min (the capture, 5 min of it, is cached for later demos)\n"
                "  cotton   the earlier default: the same tee without the detail, loose, 128 views at 256 px of\n"
                "           the whole body (the garment about 90 px tall); about 7-8 min\n"
                "  knit     a rib-knit tee with knit relief and fibre fuzz, 32 views at 320 px of the garment;\n"
