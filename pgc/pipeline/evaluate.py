@@ -115,14 +115,16 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
     """Ground-truth renders of the run's frames by ``cfg``'s scene renderer under ``light`` (a checked record of
     :func:`pgc.io.light_record.render_light`; default the capture light; an environment map is scaled by the
     capture's true radiance and turned per frame), cached in ``RUN/gt/<ground_truth_key>`` with the light's
-    public record (``light.json``). ``mode``: the truth garment on the run's geometry ('appearance') or simulated
-    on its own ('independent', its simulator found in ``registry``, default the installed plugins)."""
+    public record (``light.json``); each frame is also kept across runs (:mod:`pgc.pipeline.truth_cache`).
+    ``mode``: the truth garment on the run's geometry ('appearance') or simulated on its own ('independent', its
+    simulator found in ``registry``, default the installed plugins)."""
     from pgc.io.asset import read_asset
     from pgc.io.capture import read_capture
     from pgc.io.images import read_envmap
     from pgc.io.light_record import GT_LIGHT_FILE, capture_record, identity, public, rotation_at
     from pgc.pipeline.transfer import embed, place
-    from pgc.synth.frames import render_frames
+    from pgc.pipeline.truth_cache import TruthFrameCache, light_at
+    from pgc.synth.frames import GT_SAMPLER, GT_SAMPLES, render_frames
     from pgc.synth.ground_truth import read_ground_truth
     from pgc.synth.render import scene_renderer
     from pgc.types import Light
@@ -158,12 +160,23 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
     else:
         embedding = embed(gt.garment.vertices, asset.garment)
         gt_garment, body_frames = np.stack([place(embedding, asset.garment, garment[t]) for t in frames]), body[frames]
-    lights = None
+    lights = [gt.light] * len(frames)
     if light["kind"] == "envmap":
         envmap = read_envmap(light.get("path") or light["file"])
         lights = [Light(gt.light.radiance, envmap=envmap, rotation_deg=rotation_at(light, t)) for t in frames]
-    out = render_frames(gt, gt_garment, body_frames, cameras, lights, spp=spp, reporter=reporter,
-                        renderer=renderer or scene_renderer(cfg))
+    renderer = renderer or scene_renderer(cfg)
+    kept = TruthFrameCache.open(capture_dir, cfg.role_key("scene_renderer"), type(renderer), spp, GT_SAMPLES,
+                                GT_SAMPLER)
+    keys = [kept.key(gt_garment[i], body_frames[i], cameras, light_at(light, t), i) for i, t in enumerate(frames)]
+    out = [kept.load(k) for k in keys]
+    todo = [i for i, frame in enumerate(out) if frame is None]  # frame i is seeded by i, as in the whole sequence
+    if todo:
+        rendered = render_frames(gt, gt_garment[todo], body_frames[todo], cameras, [lights[i] for i in todo],
+                                 spp=spp, gt_samples=GT_SAMPLES, sampler=GT_SAMPLER, reporter=reporter,
+                                 renderer=renderer, frame_seeds=todo)
+        for i, frame in zip(todo, rendered):
+            kept.store(keys[i], frame)
+            out[i] = frame
     for p, frame in zip(paths, out):
         save_npz(p, **frame)
     write_json(cache / GT_LIGHT_FILE, public(light, frames))  # which light, for the report

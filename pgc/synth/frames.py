@@ -18,6 +18,10 @@ if TYPE_CHECKING:
     from pgc.roles.scene_renderer import SceneRenderer
 
 DEFAULT_FRAME_SPP = 64
+GT_SAMPLES = 2
+"""Sub-pixel ray-cast samples per axis of a frame's ground-truth layers (mask, garment coverage, labels)."""
+GT_SAMPLER = "ldsampler"
+"""Mitsuba's sampler of a frame's colour (the low-discrepancy sampler: powers of 4 samples)."""
 
 
 def _as_sequence(name: str, array: np.ndarray, vertex_count: int) -> np.ndarray:
@@ -33,8 +37,9 @@ def _as_sequence(name: str, array: np.ndarray, vertex_count: int) -> np.ndarray:
 
 def render_frames(scene_dir_or_gt: str | os.PathLike | GroundTruth, garment_vertices: np.ndarray,
                   body_vertices: np.ndarray, cameras: list[Camera], light: Light | list[Light] | None = None,
-                  spp: int | None = None, seed: int = 0, gt_samples: int = 2, sampler: str = "ldsampler",
-                  reporter: Reporter | None = None, *, renderer: SceneRenderer) -> list[dict[str, np.ndarray]]:
+                  spp: int | None = None, seed: int = 0, gt_samples: int = GT_SAMPLES, sampler: str = GT_SAMPLER,
+                  reporter: Reporter | None = None, *, renderer: SceneRenderer,
+                  frame_seeds: list[int] | None = None) -> list[dict[str, np.ndarray]]:
     """Render T frames of the ground-truth scene with new vertices, by ``renderer`` (the configuration's, see
     :func:`pgc.synth.render.scene_renderer`).
 
@@ -44,7 +49,9 @@ def render_frames(scene_dir_or_gt: str | os.PathLike | GroundTruth, garment_vert
     the low-discrepancy sampler needs powers of 4). Returns one dict per
     frame with per-camera lists: 'color' (H, W, 3) linear RGB over the light's background, 'alpha' (H, W)
     coverage, 'garment_mask' (H, W) garment coverage, 'segmentation' (H, W) labels. Fibres and the
-    near-field detail follow the garment (both are embedded in its faces).
+    near-field detail follow the garment (both are embedded in its faces). The samples of frame ``t`` and camera
+    ``c`` are seeded by ``seed * 100003 + frame_seeds[t] * 1009 + c`` (``frame_seeds`` default
+    ``0 .. T-1``), so that a subset of a sequence renders as it does within it.
     """
     gt = scene_dir_or_gt if isinstance(scene_dir_or_gt, GroundTruth) else read_ground_truth(scene_dir_or_gt)
     gv = _as_sequence("garment_vertices", garment_vertices, len(gt.garment.vertices))
@@ -57,6 +64,9 @@ def render_frames(scene_dir_or_gt: str | os.PathLike | GroundTruth, garment_vert
     if len(lights) != len(gv):
         raise PGCDataError(f"render_frames: {len(lights)} lights for {len(gv)} frames")
     spp = DEFAULT_FRAME_SPP if spp is None else int(spp)
+    frame_seeds = list(range(len(gv))) if frame_seeds is None else [int(n) for n in frame_seeds]
+    if len(frame_seeds) != len(gv):
+        raise PGCDataError(f"render_frames: {len(frame_seeds)} frame seeds for {len(gv)} frames")
     reporter = reporter or Reporter.silent()
     frames = []
     with reporter.stage("render_gt_frames", total=len(gv), spp=spp) as st:
@@ -65,7 +75,7 @@ def render_frames(scene_dir_or_gt: str | os.PathLike | GroundTruth, garment_vert
             scene, labels = renderer.build_scene(geometry, lights[t])
             out: dict[str, list[np.ndarray]] = {"color": [], "alpha": [], "garment_mask": [], "segmentation": []}
             for c, cam in enumerate(cameras):
-                color, _ = renderer.render_color(scene, cam, spp, seed * 100003 + t * 1009 + c, sampler)
+                color, _ = renderer.render_color(scene, cam, spp, seed * 100003 + frame_seeds[t] * 1009 + c, sampler)
                 layers = renderer.ground_truth_layers(scene, labels, geometry, cam, gt_samples)
                 out["color"].append(color)
                 out["alpha"].append(layers["mask"])
