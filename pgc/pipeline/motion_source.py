@@ -23,10 +23,6 @@ from pgc.errors import PGCDataError
 from pgc.motion.drive import SHIPPED_PREFIX, ClipOptions, clip_body_motion, is_clip, shipped_clip
 from pgc.types import BodyMotion
 
-MOTION_KINDS = ("clip", "built-in", "file")
-"""What ``--motion`` names: a captured clip, a built-in motion (both made on a body) or a file of body vertices."""
-
-
 def has_body_truth(capture_dir: str | Path | None) -> bool:
     """Whether a capture brings its true body: a synthetic capture's ``ground_truth/body_model.npz``, the skinned
     body that motions move."""
@@ -72,7 +68,8 @@ class MotionSource:
 
     @property
     def kind(self) -> str:
-        """One of :data:`MOTION_KINDS`, after checking that the spec names something."""
+        """What the spec names, once checked: 'clip' (a captured clip) or 'built-in' (a built-in motion), both made
+        on a body, or 'file' (a motion file of body vertices)."""
         from pgc.synth.motions import MOTIONS
 
         path = self.path
