@@ -130,9 +130,10 @@ def test_a_run_on_the_fitted_body_is_judged_against_a_truth_on_the_true_body(tin
 
     capture, asset, run = tiny_demo / "capture", tmp_path / "asset", tmp_path / "run"
     config = tmp_path / "fit.toml"
-    preset = (resources.files("pgc") / "presets" / "demo_tiny.toml").read_text()
-    config.write_text(preset + "\n[stages.body_fit]\niterations = 60\nviews = 4\n"
-                      "[stages.eval]\ntruth_options = {substeps = 4, iterations = 4, settle_frames = 4}\n")
+    preset = (resources.files("pgc") / "presets" / "demo_tiny.toml").read_text()  # the demo's stages, reused
+    assert preset.count("[stages.eval]\n") == 1
+    config.write_text(preset.replace("[stages.eval]\n", "[stages.eval]\ntruth_options = {substeps = 4, iterations = 4, "
+                                     "settle_frames = 4}\n") + "\n[stages.body_fit]\niterations = 60\nviews = 4\n")
     shutil.copytree(tiny_demo / "asset" / "stages", asset / "stages")
     common = ["--config", str(config), "--quiet"]
     assert main(["reconstruct", str(capture), "--out", str(asset), "--body", "fit", "--json", *common]) == 0
