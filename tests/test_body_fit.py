@@ -302,7 +302,8 @@ def test_reconstruct_stage_fits_a_capture_without_body_truth_and_reuses_its_resu
     from pgc.events import Reporter
     from pgc.io.capture import read_capture, write_capture
     from pgc.pipeline.cache import StageCache, file_key
-    from pgc.pipeline.reconstruct import STAGES, ReconstructInputs, has_body_truth
+    from pgc.pipeline.motion_source import has_body_truth
+    from pgc.pipeline.reconstruct import STAGES, ReconstructInputs
     from pgc.pipeline.runner import StageContext, StageRunner
 
     capture = anny_scene[1]["loose"][0]

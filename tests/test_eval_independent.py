@@ -115,3 +115,52 @@ def test_independent_truth_is_simulated_on_its_own_and_both_modes_are_recorded(t
         evaluate_run(run, images, cfg, mode="independent", registry=registry)
     sim = np.load(next((run / "gt" / "truth_sim").glob("*.npz")))
     assert sim["vertices"].shape[1] == figures["rest_vertices"] and np.all(np.isfinite(sim["vertices"]))
+
+
+@pytest.mark.slow
+def test_a_run_on_the_fitted_body_is_judged_against_a_truth_on_the_true_body(tiny_demo, tmp_path, capsys):
+    """``pgc reconstruct --body fit`` on the tiny demo's capture (its stages reused: only the body fit runs), a
+    run on that body, appearance mode refused in one line, independent mode judged against the truth simulated on
+    the true body moved by the run's motion, the body and the mode in metrics.json."""
+    from pgc.pipeline.demo import demo_config
+    from pgc.pipeline.evaluate import evaluate_run
+    from importlib import resources
+
+    from pgc.pipeline.independent import truth_body_motion
+
+    capture, asset, run = tiny_demo / "capture", tmp_path / "asset", tmp_path / "run"
+    config = tmp_path / "fit.toml"
+    preset = (resources.files("pgc") / "presets" / "demo_tiny.toml").read_text()  # the demo's stages, reused
+    assert preset.count("[stages.eval]\n") == 1
+    config.write_text(preset.replace("[stages.eval]\n", "[stages.eval]\ntruth_options = {substeps = 4, iterations = 4, "
+                                     "settle_frames = 4}\n") + "\n[stages.body_fit]\niterations = 60\nviews = 4\n")
+    shutil.copytree(tiny_demo / "asset" / "stages", asset / "stages")
+    common = ["--config", str(config), "--quiet"]
+    assert main(["reconstruct", str(capture), "--out", str(asset), "--body", "fit", "--json", *common]) == 0
+    assert json.loads(capsys.readouterr().out)["body"] == "fit"
+    seconds = json.loads((asset / "timings.json").read_text())["seconds"]
+    assert seconds["body_fit"] > 0 and seconds["mesh"] == seconds["material"] == 0.0  # only the body fit ran
+    assert (asset / "body_fit" / "body.json").is_file()
+    assert main(["animate", str(asset), "--motion", "goalpost", "--out", str(run), *common]) == 0
+    assert json.loads((run / "run.json").read_text())["body"] == "fit"
+    assert main(["render", str(run), *common]) == 0
+
+    capsys.readouterr()
+    assert main(["eval", str(run), "--gt", str(capture), *common]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err and "--mode independent" in err
+    assert not (run / "metrics.json").exists()
+
+    truth = truth_body_motion(run, capture)  # the demo's goalpost on the true body, not the run's fitted one
+    demo_body = np.load(tiny_demo / "runs" / "goalpost" / "body.npz")["vertices"]
+    np.testing.assert_allclose(truth.vertices, demo_body, atol=1e-5)
+    assert np.abs(np.load(run / "body.npz")["vertices"] - demo_body).max() > 1e-3
+
+    registry = registry_with_newton()
+    result = evaluate_run(run, capture, demo_config("tiny", config, registry=registry), mode="independent",
+                          registry=registry)
+    doc = json.loads((run / "metrics.json").read_text())
+    assert doc["mode"] == result["mode"] == "independent" and doc["body"] == result["body"] == "fit"
+    assert doc["modes"]["independent"]["truth_simulation"]["simulator"] == "newton-vbd"
+    for key in VARIANTS:
+        assert all(math.isfinite(result[key][m]) for m in ("psnr", "ssim", "fsim", "lpips"))

@@ -22,8 +22,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--gt", required=True, help="synthetic capture folder or image folder")
     p.add_argument("--out", help="metrics JSON path (default RUN/metrics.json)")
     p.add_argument("--mode", choices=MODES, default=MODES[0],
-                   help="ground truth on the run's simulated geometry (appearance, default) or simulated on its own "
-                        "(independent)")
+                   help="ground truth on the run's simulated geometry (appearance, default; refused for a run that "
+                        "moved on the body fitted to the capture) or simulated on its own on the capture's true body "
+                        "(independent: the paper's comparison; the run may move on the fitted body, see "
+                        "'pgc reconstruct --body fit')")
     add_run_options(p)
     p.set_defaults(func=run)
 

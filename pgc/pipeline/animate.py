@@ -1,12 +1,14 @@
 """``pgc animate``: simulate an asset's garment on a body motion; the run folder holds the trajectories.
 
-A motion is a built-in name (goalpost, spooky, arms-up, walk, arm-swing: the body model stored with a
-synthetic capture, posed by :func:`pgc.synth.motions.make_motion`), a captured clip (.amc with its ASF, or
-.bvh: retargeted onto that body, :mod:`pgc.pipeline.motion_source`) or a file (an .npz with ``vertices`` (T, V, 3) and
-``faces``, or a folder of OBJ frames) whose frame 0 is the capture pose.
+A motion is a built-in name (goalpost, spooky, arms-up, walk, arm-swing, posed by
+:func:`pgc.synth.motions.make_motion`) or a captured clip (.amc with its ASF, .bvh, AMASS .npz: retargeted), both
+on the body the asset moves on (:mod:`pgc.pipeline.motion_source`: the synthetic capture's true body, or the body
+fitted to the capture), or a file (an .npz with ``vertices`` (T, V, 3) and ``faces``, or a folder of OBJ frames)
+whose frame 0 is the capture pose.
 
-Run folder: ``run.json`` (asset, motion, fps, simulator, figures), ``garment.npz`` (vertices (T, V, 3)),
-``body.npz`` (vertices, faces); cached by content hash under ``stages/``.
+Run folder: ``run.json`` (asset, capture, motion, ``motion_source``, ``body``: 'truth', 'fit' or null for a motion
+file, fps, simulator, figures), ``garment.npz`` (vertices (T, V, 3)), ``body.npz`` (vertices, faces); cached by
+content hash under ``stages/``.
 """
 
 from __future__ import annotations
@@ -26,7 +28,8 @@ from pgc.io.limits import read_json
 from pgc.io.timings import write_timings
 from pgc.motion.drive import ClipOptions
 from pgc.pipeline.cache import StageCache, array_key, asset_key
-from pgc.pipeline.motion_source import resolve_motion
+from pgc.pipeline.motion_source import (MotionSource, asset_body, capture_body, motion_body,
+                                          resolve_motion)
 from pgc.pipeline.runner import StageContext, StageRunner, Step
 from pgc.pipeline.stage_io import save_npz
 from pgc.stages import animate as animate_stage
@@ -71,9 +74,11 @@ def animate(asset_dir: str | Path, motion_spec: str, out: str | Path, cfg: RunCo
     asset_dir, out = Path(asset_dir), Path(out)
     asset = read_asset(asset_dir)
     capture = Path(capture_dir) if capture_dir else source_capture(asset.config)
-    settings = cfg.stage("animate")
-    motion = resolve_motion(motion_spec, capture, settings.seconds, clip, lambda: cfg.create("body_model"),
-                            asset_dir / BODY_FIT_DIR)
+    source = MotionSource(motion_spec, cfg.stage("animate").seconds, clip)
+    asked = asset_body(asset.config, capture)
+    body = motion_body(capture, asked) if source.kind != "file" else None
+    motion = resolve_motion(source, lambda what: capture_body(capture, asset_dir / BODY_FIT_DIR, what, asked),
+                            lambda: cfg.create("body_model"))
     runner = StageRunner(StageCache(out / "stages"), StageContext(cfg, reporter, AnimateInputs(asset, motion)), {
         "asset": asset_key(asset_dir), "motion": {"spec": motion_spec, "vertices": array_key(motion.vertices),
                                                   "faces": array_key(motion.faces), "fps": motion.fps}})
@@ -86,7 +91,8 @@ def animate(asset_dir: str | Path, motion_spec: str, out: str | Path, cfg: RunCo
     write_timings(out, timings or {})
     write_json(out / "run.json", {  # last: a run folder with a run.json is complete
         "asset": str(asset_dir.resolve()), "capture": None if capture is None else str(capture.resolve()),
-        "motion": motion_spec, "fps": motion.fps, "frames": motion.num_frames,
+        "motion": motion_spec, "motion_source": source.record(), "body": body, "fps": motion.fps,
+        "frames": motion.num_frames,
         "simulator": cfg.roles["simulator"].name, "figures": figures})
     return out
 

@@ -2,9 +2,11 @@
 
 Ground truth: for a synthetic capture, the run's own frames are rendered with the ground-truth materials. Mode
 ``appearance`` (default): on matching geometry, the ground-truth garment tied to the reconstructed rest garment
-(:mod:`pgc.pipeline.transfer`) and carried along its simulated motion; the body follows the run's motion. Mode
-``independent``: the truth garment simulated on its own (:mod:`pgc.pipeline.independent`). metrics.json keeps
-each mode evaluated on the same renders under ``modes``; its top level is the appearance result when there is one.
+(:mod:`pgc.pipeline.transfer`) and carried along its simulated motion; the body follows the run's motion, so a run
+that moved on the body fitted to the capture (run.json ``body``: 'fit') is refused. Mode ``independent``: the
+truth garment simulated on its own on the true body (:mod:`pgc.pipeline.independent`), whichever body the run
+moved on. metrics.json records the mode and the run's body, and keeps each mode evaluated on the same renders
+under ``modes``; its top level is the appearance result when there is one.
 For a folder of images, ``frame_XXXX_CAMERA.png`` files are compared directly.
 Light: the ground truth is lit as the renders were (``render.json`` field ``light``,
 :mod:`pgc.io.light_record`): the capture light, or the same environment map file turned by the same angle per
@@ -156,7 +158,7 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
         from pgc.pipeline.independent import independent_garment
 
         gt_garment, body_frames, _ = independent_garment(gt.garment, run_dir, capture_dir, frames, cfg.stage("eval"),
-                                                         registry, reporter)
+                                                         registry, reporter, lambda: cfg.create("body_model"))
     else:
         embedding = embed(gt.garment.vertices, asset.garment)
         gt_garment, body_frames = np.stack([place(embedding, asset.garment, garment[t]) for t in frames]), body[frames]
@@ -210,15 +212,16 @@ def compute_eval(ctx: StageContext[EvalInputs], folder: Path) -> tuple[dict[str,
     fix = f"run 'pgc render {run_dir}' (again)"
     metrics = cfg.roles["metric"].create_all()
     truth_figures = None
-    if (gt / "ground_truth").is_dir() or (gt / "scene.json").is_file():
-        capture = gt if (gt / "ground_truth").is_dir() else gt.parent
+    capture = synthetic_capture(gt)
+    if capture is not None:
         truth = synthetic_ground_truth(run_dir, capture, frames, meta["cameras"], cfg.stage("eval").gt_spp, cfg,
                                        reporter, light, inp.mode, inp.registry)
         targets = [(f["color"] * f["garment_mask"][..., None], f["garment_mask"]) for f in truth]
         if inp.mode == "independent":
             from pgc.pipeline.independent import truth_simulation
 
-            truth_figures = truth_simulation(run_dir, capture, cfg.stage("eval"), inp.registry)[2]
+            truth_figures = truth_simulation(run_dir, capture, cfg.stage("eval"), inp.registry,
+                                             pose_body=lambda: cfg.create("body_model"))[2]
     else:
         if inp.mode != "appearance":
             raise PGCDataError(f"--gt {gt}: a folder of images cannot be evaluated in mode '{inp.mode}' (it needs a "
@@ -244,7 +247,7 @@ def compute_eval(ctx: StageContext[EvalInputs], folder: Path) -> tuple[dict[str,
             st.progress(i + 1)
     result: dict[str, Any] = {"run": str(run_dir), "ground_truth": str(gt), "frames": frames,
                               "cameras": meta["cameras"], "kernel_size": meta.get("kernel_size"),
-                              "light": public(light, frames), "mode": inp.mode,
+                              "light": public(light, frames), "mode": inp.mode, "body": run_body(run_dir),
                               "render_inputs": render_inputs(run_dir)}
     if truth_figures is not None:
         result["truth_simulation"] = truth_figures
@@ -275,6 +278,31 @@ def with_modes(path: Path, result: dict[str, Any]) -> dict[str, Any]:
     return {**{k: v for k, v in top.items() if k != "modes"}, "modes": modes}
 
 
+def synthetic_capture(gt: Path) -> Path | None:
+    """The synthetic capture that ``--gt`` names (its folder, or its ``ground_truth`` folder); None for a folder of
+    images."""
+    if (gt / "ground_truth").is_dir():
+        return gt
+    return gt.parent if (gt / "scene.json").is_file() else None
+
+
+def run_body(run_dir: Path) -> str | None:
+    """The body the run's garment moved on (run.json ``body``): 'truth', 'fit', or None for a motion file of body
+    vertices; a run recorded before runs named it moved on the capture's true body."""
+    meta = read_run(run_dir)
+    return meta["body"] if "body" in meta else "truth"
+
+
+def check_appearance_body(run_dir: Path, gt: Path) -> None:
+    """Refuse to judge appearance on the geometry of a run that moved on the body fitted to the capture: the truth
+    garment would be carried along a simulation on a body that is not the truth's."""
+    if synthetic_capture(gt) is not None and run_body(run_dir) == "fit":
+        raise PGCDataError(f"{run_dir}: the run's garment moved on the body fitted to the capture (run.json 'body': "
+                           "'fit'), and mode 'appearance' carries the truth garment along the run's own simulation; "
+                           f"evaluate it with 'pgc eval {run_dir} --gt {gt} --mode independent' (the truth simulated "
+                           "on the true body), or animate an asset reconstructed with 'pgc reconstruct --body truth'")
+
+
 STAGES = ((eval_stage.STAGE, Step(compute_eval)),)
 """The stages of ``pgc eval``, each with its code."""
 
@@ -290,6 +318,8 @@ def evaluate_run(run_dir: str | Path, gt: str | Path, cfg: RunConfig, reporter: 
     check_mode(mode)
 
     run_dir, gt = Path(run_dir), Path(gt)
+    if mode == "appearance":
+        check_appearance_body(run_dir, gt)
     meta, frames = rendered_frames(run_dir)
     fix = f"run 'pgc render {run_dir}' (again)"
     for t in frames:  # before the ground truth is rendered

@@ -9,7 +9,8 @@ mode nothing of the pipeline's simulation is used, as in the paper's evaluation:
 - simulator: eval setting ``truth_simulator`` (default ``newton-vbd``, Vertex Block Descent in Newton) with that
   implementation's own defaults (over which ``truth_options`` may set some): its cloth parameters, not the
   pipeline's (docs/simulation.md, "Independent truth");
-- body: :func:`truth_body_motion`, the true body driven by the run's motion;
+- body: :func:`truth_body_motion`, the true body driven by the run's motion, while the run's garment moves on the
+  body the run chose (:mod:`pgc.pipeline.motion_source`: the true one, or the one fitted to the capture);
 - appearance: the capture's truth garment (its textures, fibres, detail) tied to the fine rest garment and carried
   along the fine simulation; nothing is aligned to the pipeline's garment.
 
@@ -19,6 +20,7 @@ The simulation is cached under ``RUN/gt/truth_sim/<key>.npz``, keyed on everythi
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -40,23 +42,38 @@ def check_mode(mode: str) -> str:
     return mode
 
 
-def truth_body_motion(run_dir: Path, capture_dir: Path) -> BodyMotion:
-    """The body the truth garment moves on: the capture's true body driven by the run's motion.
+def truth_body_motion(run_dir: Path, capture_dir: Path, pose_body: Callable[[], Any] | None = None) -> BodyMotion:
+    """The body the truth garment moves on: the capture's true body driven by the run's motion, the one place
+    that decides it.
 
-    The one place that decides it. Until the pipeline fits its own body (``pgc body fit``), ``pgc animate`` moves
-    the garment on the capture's true body model, so the run's ``body.npz`` is that body; it is checked to be (same
-    vertex count as the capture's ``body_model.npz``). Once runs move on a fitted body, this must pose the true
-    body by the run's motion instead."""
+    The run's clip or built-in motion (run.json ``motion_source``) is made again on the true body's rig, whichever
+    body the run moved on (``body``: its true body or the body fitted to the capture), and must give the run's
+    frames. A run on a motion file of body vertices (or one recorded before runs named their motion source) moved
+    on those vertices, which must be the true body's (same vertex count). ``pose_body`` makes the configured body
+    model, which an AMASS pose clip needs for its skeleton."""
     from pgc.pipeline.animate import read_run
+    from pgc.pipeline.motion_source import MotionSource, capture_body, resolve_motion
     from pgc.synth.ground_truth import read_body_model
 
+    meta = read_run(run_dir)
+    fps, frames = float(meta.get("fps", 30.0)), int(np.load(run_dir / "body.npz")["vertices"].shape[0])
+    record = meta.get("motion_source")
+    if record is not None and record.get("kind") != "file":
+        source = MotionSource.from_record(record, str(run_dir / "run.json"))
+        motion = resolve_motion(source, lambda what: capture_body(capture_dir, None, what), pose_body)
+        if motion.num_frames != frames or abs(motion.fps - fps) > 1e-6:
+            raise PGCDataError(f"{run_dir}: its motion '{source.spec}' on the capture's true body gives "
+                               f"{motion.num_frames} frames at {motion.fps:g} fps, the run has {frames} at {fps:g}; "
+                               "animate the run again")
+        return BodyMotion(motion.vertices, motion.faces, fps=motion.fps, name="truth")
     z = np.load(run_dir / "body.npz")
     true_body = read_body_model(capture_dir)
     if z["vertices"].shape[1] != len(true_body.vertices):
-        raise PGCDataError(f"{run_dir / 'body.npz'}: the run's body has {z['vertices'].shape[1]} vertices, the "
-                           f"capture's true body {len(true_body.vertices)}; independent evaluation needs the true "
-                           "body driven by the run's motion (animate the run on the capture's body)")
-    return BodyMotion(z["vertices"], z["faces"], fps=float(read_run(run_dir).get("fps", 30.0)), name="truth")
+        raise PGCDataError(f"{run_dir / 'body.npz'}: the run moved on a motion file of {z['vertices'].shape[1]} body "
+                           f"vertices, the capture's true body has {len(true_body.vertices)}; independent evaluation "
+                           "needs the true body driven by the run's motion: animate the run with a clip or a built-in "
+                           "motion, or with a motion file of the true body")
+    return BodyMotion(z["vertices"], z["faces"], fps=fps, name="truth")
 
 
 def truth_rest_garment(capture_dir: Path, factor: float) -> Mesh:
@@ -86,9 +103,10 @@ def truth_simulator(name: str, registry: Any = None) -> Any:
 
 
 def truth_simulation(run_dir: Path, capture_dir: Path, settings: Any, registry: Any = None,
-                     reporter: Reporter | None = None) -> tuple[np.ndarray, Mesh, dict[str, Any]]:
-    """The fine truth garment simulated on the true body: vertices (T, V, 3) per motion frame, its rest mesh and
-    the simulator's figures; cached under ``RUN/gt/truth_sim``."""
+                     reporter: Reporter | None = None, pose_body: Callable[[], Any] | None = None,
+                     ) -> tuple[np.ndarray, Mesh, dict[str, Any]]:
+    """The fine truth garment simulated on the true body (:func:`truth_body_motion`, with ``pose_body``): vertices
+    (T, V, 3) per motion frame, its rest mesh and the simulator's figures; cached under ``RUN/gt/truth_sim``."""
     import time
 
     from pgc.io.atomic import atomic_open, write_json
@@ -96,7 +114,7 @@ def truth_simulation(run_dir: Path, capture_dir: Path, settings: Any, registry: 
 
     impl = truth_simulator(settings.truth_simulator, registry)
     options = impl.validate_options(settings.truth_options, where="[stages.eval] truth_options")
-    motion = truth_body_motion(run_dir, capture_dir)
+    motion = truth_body_motion(run_dir, capture_dir, pose_body)
     gt_dir = capture_dir / "ground_truth"
     key = content_key("truth-sim", TRUTH_SIM_VERSION, file_key(gt_dir / "scene.json"),
                       file_key(gt_dir / "body_model.npz"), array_key(motion.vertices), motion.fps,
@@ -123,16 +141,15 @@ def truth_simulation(run_dir: Path, capture_dir: Path, settings: Any, registry: 
 
 
 def independent_garment(gt_garment: Mesh, run_dir: Path, capture_dir: Path, frames: list[int], settings: Any,
-                        registry: Any = None, reporter: Reporter | None = None
-                        ) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+                        registry: Any = None, reporter: Reporter | None = None,
+                        pose_body: Callable[[], Any] | None = None) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """The capture's truth garment carried along the fine truth simulation at ``frames`` (F, V, 3), the true body
-    there (F, B, 3) and the simulation's figures."""
+    there (F, B, 3) and the simulation's figures (``pose_body``: see :func:`truth_body_motion`)."""
     from pgc.pipeline.transfer import embed, place
 
-    vertices, rest, figures = truth_simulation(run_dir, capture_dir, settings, registry, reporter)
+    vertices, rest, figures = truth_simulation(run_dir, capture_dir, settings, registry, reporter, pose_body)
     if max(frames) >= len(vertices):
         raise PGCDataError(f"{run_dir}: rendered frames {frames} lie beyond the truth simulation's {len(vertices)}")
     embedding = embed(gt_garment.vertices, rest)
     garment = np.stack([place(embedding, rest, vertices[t]) for t in frames])
-    body = truth_body_motion(run_dir, capture_dir).vertices[frames]
-    return garment, body, figures
+    return garment, truth_body_motion(run_dir, capture_dir, pose_body).vertices[frames], figures

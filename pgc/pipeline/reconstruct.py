@@ -5,8 +5,8 @@ Stages (declared in :mod:`pgc.stages`; folder ``OUT/stages/<name>``, options ``[
 ``fit_splats`` (mesh-embedded Gaussians fitted on the full mesh, then only the garment's kept) -> ``base_color``
 (albedo estimator + colour correction + UV merge on the garment) -> ``material`` (BRDF parameters and the
 light's radiance, fitted by the PBR renderer under the capture's light) -> ``body_fit`` (the body model fitted to
-the capture's labels, only for a capture without a ground-truth body; copied to ``OUT/body_fit``) -> the asset
-directory ``OUT``.
+the capture's labels, when the asset's garment moves on it: :func:`pgc.pipeline.motion_source.motion_body`; copied
+to ``OUT/body_fit``) -> the asset directory ``OUT``, whose config records that body (``source.body``).
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ from pgc.io.body_fit import BODY_FIT_DIR
 from pgc.io.limits import read_json
 from pgc.pipeline.cache import StageCache, file_key
 from pgc.pipeline.garment import body_occluder, garment_gaussians, with_occluder
+from pgc.pipeline.motion_source import motion_body
 from pgc.pipeline.runner import StageContext, StageRunner, Step
 from pgc.pipeline.stage_io import load_gaussians, load_mesh, save_gaussians, save_mesh
 from pgc.stages import base_color, body_fit, fit_splats, garment, material, mesh
@@ -156,11 +157,6 @@ def load_body_fit(ctx: Context, folder: Path) -> Any:
     return read_body_fit(folder)
 
 
-def has_body_truth(capture_dir: str | Path) -> bool:
-    """Whether a capture brings its true body (a synthetic capture's ``ground_truth/body.obj``)."""
-    return (Path(capture_dir) / "ground_truth" / "body.obj").is_file()
-
-
 STAGES = ((mesh.STAGE, Step(compute_mesh, load_full_mesh)),
           (garment.STAGE, Step(compute_garment, load_garment)),
           (fit_splats.STAGE, Step(compute_splats, load_splats)),
@@ -172,7 +168,8 @@ STAGES = ((mesh.STAGE, Step(compute_mesh, load_full_mesh)),
 
 def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
                 reporter: Reporter | None = None) -> GarmentAsset:
-    """Run every stage (reusing cached ones) and write the asset to ``out``."""
+    """Run every stage (reusing cached ones) and write the asset to ``out``: its garment moves on the body that
+    :func:`~pgc.pipeline.motion_source.motion_body` chooses for ``[stages.body_fit] motion_body``."""
     from pgc.io.asset import write_asset
     from pgc.io.capture import read_capture
     from pgc.io.timings import write_timings
@@ -185,9 +182,10 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
     ctx = StageContext(cfg, reporter or Reporter.silent(), ReconstructInputs(capture))
     runner = StageRunner(StageCache(out / "stages"), ctx, {"capture": file_key(capture_dir),
                                                            "garment_labels": capture.garment_label_ids})
+    body = motion_body(capture_dir, cfg.stage("body_fit").motion_body)
     for stage, step in STAGES:
-        if stage is body_fit.STAGE and has_body_truth(capture_dir):
-            continue  # the capture's own body drives the motions
+        if stage is body_fit.STAGE and body == "truth":
+            continue  # the capture's true body drives the motions
         runner.run(stage, step)
     full, (piece, sel) = ctx.values["mesh"], ctx.values["garment"]
     full_gaussians, heldout_views = ctx.values["fit_splats"]
@@ -198,13 +196,17 @@ def reconstruct(capture_dir: str | Path, out: str | Path, cfg: RunConfig,
     figures["gaussians_garment"] = len(gaussians)
     asset = GarmentAsset(garment=piece, body=full, gaussians=gaussians, material=mat, light=light,
                          heldout_views=heldout_views,
-                         config=dict(cfg.to_dict(), source={"capture": str(Path(capture_dir).resolve())}),
+                         config=dict(cfg.to_dict(), source={"capture": str(Path(capture_dir).resolve()), "body": body}),
                          figures=figures)
     write_asset(out, asset)
-    if "body_fit" in ctx.values:
+    if body == "fit":
         from pgc.io.body_fit import write_body_fit
 
         write_body_fit(out / BODY_FIT_DIR, ctx.values["body_fit"])
+    elif (out / BODY_FIT_DIR).is_dir():  # an earlier reconstruction's: this asset moves on the true body
+        import shutil
+
+        shutil.rmtree(out / BODY_FIT_DIR)
     write_timings(out, {"seconds": runner.seconds, "stages": stage_timings or {}})
     return asset
 

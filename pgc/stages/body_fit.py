@@ -1,13 +1,20 @@
 """Stage ``body_fit``: the body model's shape and capture pose fitted to the capture's silhouettes, segmentation
 labels and (where present) 2D keypoints (:func:`pgc.body.fit.fit_body`); ``pgc reconstruct`` runs it for a
-capture without a ground-truth body, and ``pgc body fit`` runs the same fit alone."""
+capture without a ground-truth body, or with ``motion_body = "fit"`` for any capture, and ``pgc body fit`` runs the
+same fit alone."""
 
 from __future__ import annotations
+
+from typing import Literal, get_args
 
 from pydantic import Field
 
 from pgc.options import Options, count
 from pgc.stages.declaration import Stage
+
+MotionBody = Literal["truth", "fit"]
+MOTION_BODIES: tuple[str, ...] = get_args(MotionBody)
+"""The bodies an asset's garment can move on in ``pgc animate`` (``motion_body``; ``pgc reconstruct --body``)."""
 
 
 class BodyFitSettings(Options):
@@ -23,6 +30,10 @@ class BodyFitSettings(Options):
                                                                    "shape logits), decayed in the last phase")
     pose_prior: float = Field(2.0, ge=0.0, le=1e6, description="weight of the squared joint angles (rad^2) "
                                                                "against the silhouette loss (px^2 per pixel)")
+    motion_body: MotionBody = Field("truth", description=(
+        "the body the asset's garment moves on in 'pgc animate': 'truth' = a synthetic capture's true body, 'fit' "
+        "= the body fitted to the capture (this stage, run even when the capture has a true body), as the paper "
+        "measured; a capture without a true body always moves on its fitted body (pgc reconstruct --body)"))
 
 
 STAGE = Stage(name="body_fit", command="reconstruct", version="1", inputs=("capture",),
