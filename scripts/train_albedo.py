@@ -66,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--config", type=Path, help="run configuration TOML: its [scene_renderer] renders the data")
     args = p.parse_args(argv)
     if args.smoke:
-        args.scenes, args.val_scenes, args.views, args.resolution, args.steps = 1, 1, 2, 48, 20
+        args.scenes, args.val_scenes, args.views, args.resolution, args.steps = 1, 1, 2, 48, 5
 
     import torch
 

@@ -36,7 +36,12 @@ os.environ.setdefault("PGC_CAPTURE_CACHE", "off")  # no test fills the user's ca
 
 def pytest_configure(config: pytest.Config) -> None:
     """Under pytest-xdist (``make test`` runs ``-n 2``), each worker's torch gets its share of the cores, so two
-    workers never run more torch threads than there are cores."""
+    workers never run more torch threads than there are cores; with ``--dist loadfile`` the files are handed out in
+    the order of :func:`pytest_collection_modifyitems` (pytest-xdist's default reorders them by their number of
+    tests, most first: the few-test, costliest files, test_kill's 2 tests or test_isa_levels' 3, came last and one
+    worker ran on alone)."""
+    if getattr(config.option, "dist", "no") in ("loadfile", "loadscope"):
+        config.option.loadscopereorder = False
     workers = config.workerinput["workercount"] if hasattr(config, "workerinput") else 1
     if workers > 1:
         try:
@@ -96,12 +101,23 @@ def pytest_terminal_summary(terminalreporter, config: pytest.Config) -> None:
         terminalreporter.write_line(f"{seconds:8.1f}  {name}")
 
 
+FILE_CPU_SECONDS = {
+    "test_splat_fit_loop.py": 136, "test_kill.py": 125, "test_sweep.py": 115, "test_demo.py": 110,
+    "test_isa_levels.py": 95, "test_xpbd.py": 75, "test_body_fit.py": 72, "test_splat_jax.py": 61,
+    "test_albedo_training.py": 45, "test_newton_cloth.py": 31,
+}
+"""The costliest test files' CPU seconds (``--cpu-durations``; docs/architecture.md, "Running the tests"), which
+order the files under pytest-xdist. test_demo's holds the session's ``tiny_demo`` (about 85 s), which the first of
+its users builds: test_demo starts early, so the other users find it built."""
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Under pytest-xdist, the files holding ``slow`` tests go first (each keeps its order; so does the rest), so
-    the long files start early and the short ones fill the workers' ends instead of one long file ending last."""
+    """Under pytest-xdist, the costliest files first (:data:`FILE_CPU_SECONDS`, most first), then the other files
+    holding ``slow`` tests, then the rest (each file keeps its order, and so do the files within each group): the
+    long files start early and the short ones fill the workers' ends instead of one long file ending last."""
     if hasattr(config, "workerinput"):
         heavy = {item.path for item in items if item.get_closest_marker("slow")}
-        items.sort(key=lambda item: item.path not in heavy)
+        items.sort(key=lambda item: (-FILE_CPU_SECONDS.get(item.path.name, 0), item.path not in heavy))
 
 
 @pytest.fixture

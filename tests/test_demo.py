@@ -1,6 +1,12 @@
-"""End to end: `pgc demo --preset tiny` (synthetic capture -> asset -> three motions -> metrics, report)."""
+"""End to end: `pgc demo --preset tiny` (synthetic capture -> asset -> three motions -> metrics, report).
+
+The demo checked is the session's ``tiny_demo`` (tests/conftest.py: one demo for the whole suite, which
+tests/test_eval_relit.py, tests/test_report.py and others read too); the resume and the kernel rule are checked on a
+copy of it whose renders are removed, so that the rerun renders every motion and light again in this process.
+"""
 
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -9,15 +15,10 @@ from pgc.cli import main
 
 
 @pytest.mark.slow
-def test_tiny_demo_runs_end_to_end_and_reports_every_variant(tmp_path, monkeypatch):
-    from pgc.pipeline import render
+def test_tiny_demo_runs_end_to_end_and_reports_every_variant(tiny_demo, tmp_path, monkeypatch):
+    from pgc.pipeline import render as render_stage
 
-    calls = []
-    rule = render.choose_kernel
-    monkeypatch.setattr(render, "choose_kernel", lambda *a: calls.append(1) or rule(*a))
-    out = tmp_path / "demo"
-    assert main(["demo", "--preset", "tiny", "--out", str(out), "--quiet"]) == 0
-    assert len(calls) <= 1  # one asset, four motions: the kernel rule runs once per process
+    out = tiny_demo  # read only: the resume below runs on a copy
     metrics = json.loads((out / "metrics.json").read_text())
     for variant in ("hybrid", "3dgs_only", "pbr_only"):
         for name in ("psnr", "ssim", "fsim", "lpips"):
@@ -46,11 +47,26 @@ def test_tiny_demo_runs_end_to_end_and_reports_every_variant(tmp_path, monkeypat
     if meta["far_source"] == "mesh":
         np.testing.assert_array_equal(frame["hybrid_alpha"], frame["pbr_alpha"])
     assert np.all(frame["hybrid"][frame["hybrid_alpha"] == 0] == 0)  # over black outside the outline
-    # the asset is complete and a rerun resumes from the cache (nothing recomputed)
+    # the asset is complete and a rerun resumes from the cache: with the renders gone, the asset and the animations
+    # are not recomputed, and the kernel rule runs once for the four motions and the three lights (once per process)
     assert (out / "asset" / "manifest.json").is_file()
-    stamp = {p: p.stat().st_mtime for p in (out / "asset" / "stages").rglob("stage.json")}
+    out = tmp_path / "demo"
+    shutil.copytree(tiny_demo, out)
+    renders = [p for p in out.glob("runs/**/render") if (p / "stage.json").is_file()]
+    assert len(renders) == 6  # four motions under the capture light, spooky under two novel lights
+    for folder in renders:
+        shutil.rmtree(folder)
+    stamp = {p: p.stat().st_mtime for p in out.rglob("stage.json")}
+    assert {p.parents[2].name for p in stamp if p.parent.name == "animate"} == set(metrics["motions"])
+    assert any(p.is_relative_to(out / "asset" / "stages") for p in stamp)
+    calls = []
+    rule = render_stage.choose_kernel
+    monkeypatch.setattr(render_stage, "choose_kernel", lambda *a: calls.append(1) or rule(*a))
     assert main(["demo", "--preset", "tiny", "--out", str(out), "--quiet"]) == 0
-    assert {p: p.stat().st_mtime for p in (out / "asset" / "stages").rglob("stage.json")} == stamp
+    assert len(calls) == 1  # one asset, four motions, three lights: the kernel rule runs once per process
+    assert {p: p.stat().st_mtime for p in stamp} == stamp
+    assert all((folder / "stage.json").is_file() for folder in renders)
+    assert json.loads((out / "metrics.json").read_text())["lights"].keys() == metrics["lights"].keys()
 
 
 def test_scene_presets_without_their_own_settings_take_the_default_demo_settings():

@@ -42,6 +42,25 @@ def forced_levels(flags: set[str]) -> dict[str, str]:
     return {"ATEN_CPU_CAPABILITY": "default", "ONEDNN_MAX_CPU_ISA": "SSE41", "XLA_FLAGS": "--xla_cpu_max_isa=SSE4_2"}
 
 
+def agreement_files() -> list[str]:
+    """The test files that mark tests ``agreement`` (their source names ``mark.agreement``), relative to the
+    repository root: the forced-level run collects these only, not the whole suite (13 CPU s of imports and
+    collection for 44 of 1778 tests). :func:`test_agreement_files_hold_every_agreement_test` checks the scan
+    against what pytest collected."""
+    return sorted(str(p.relative_to(ROOT)) for p in (ROOT / "tests").glob("test_*.py")
+                  if p.name != Path(__file__).name and "mark.agreement" in p.read_text())
+
+
+def test_agreement_files_hold_every_agreement_test(request):
+    """Every ``agreement`` test this session collected (the whole suite under ``make test``) is in a file that
+    :func:`agreement_files` names."""
+    files = agreement_files()
+    assert "tests/test_splat_torch_vs_jax.py" in files and "tests/test_isa_levels.py" not in files
+    collected = {str(item.path.relative_to(ROOT)) for item in request.session.items
+                 if item.get_closest_marker("agreement")}
+    assert collected <= set(files), sorted(collected - set(files))
+
+
 def test_forced_levels_are_below_the_cpu_s_own():
     assert forced_levels({"avx512f", "avx2", "fma"})["ATEN_CPU_CAPABILITY"] == "avx2"
     assert forced_levels({"avx2", "fma"})["ATEN_CPU_CAPABILITY"] == "default"
@@ -58,8 +77,8 @@ def test_the_agreement_tests_pass_one_instruction_set_below_the_machine_s_own():
                            env=env, capture_output=True, text=True, timeout=120)
     assert probe.returncode == 0 and probe.stdout.strip() == forced["ATEN_CPU_CAPABILITY"].upper(), probe
     run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-m", "agreement and not slow", "-p",
-                          "no:cacheprovider", "-o", "addopts=", "tests"], cwd=ROOT, env=env, capture_output=True,
-                          text=True, timeout=1200)
+                          "no:cacheprovider", "-o", "addopts=", *agreement_files()], cwd=ROOT, env=env,
+                         capture_output=True, text=True, timeout=1200)
     tail = "\n".join(run.stdout.splitlines()[-30:])
     assert run.returncode == 0, f"agreement tests under {forced}:\n{tail}\n{run.stderr[-2000:]}"
     assert " passed" in tail and " failed" not in tail, tail
