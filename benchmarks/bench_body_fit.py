@@ -3,6 +3,7 @@
 
     python benchmarks/bench_body_fit.py [--seeds 0 1 2 3 4] [--scenes tiny default] [--sweep] [--out FILE]
     python benchmarks/bench_body_fit.py --capture DIR [DIR ...] [--sweep]   # pgc synth captures (with ground_truth/)
+    python benchmarks/bench_body_fit.py --capture DIR --views 8 [--iterations N] [--keypoints]   # one setting
 
 Scenes (made in-process, :func:`pgc.testing.body_scenes.anny_capture`: an Anny body of a per-seed shape and pose,
 :func:`~pgc.testing.body_scenes.random_body`, in a tight and a loose shirt, masks and labels from the scene
@@ -70,6 +71,9 @@ def main() -> None:
     p.add_argument("--garments", nargs="+", default=["tight", "loose"])
     p.add_argument("--sweep", action="store_true", help="vary views, iterations and keypoints on the first seed")
     p.add_argument("--capture", nargs="+", type=Path, help="synthetic captures (with ground_truth/) instead")
+    p.add_argument("--views", type=int, help="views used (default: [stages.body_fit]'s)")
+    p.add_argument("--iterations", type=int, help="most steps (default: [stages.body_fit]'s)")
+    p.add_argument("--keypoints", action="store_true", help="keypoints at the true joints' projections")
     p.add_argument("--out", type=Path, default=Path("bench_body_fit.json"))
     args = p.parse_args()
 
@@ -79,7 +83,7 @@ def main() -> None:
     from pgc.types import Mesh
 
     body = Registry.discover().create("body_model", "anny")
-    base = BodyFitSettings()
+    base = BodyFitSettings(**{k: v for k, v in (("views", args.views), ("iterations", args.iterations)) if v})
     records: list[dict[str, Any]] = []
 
     def record(scene: str, seed, garment: str, settings, keypoints: bool, result: dict[str, Any],
@@ -115,7 +119,7 @@ def main() -> None:
             preset = meta.get("preset") if isinstance(meta.get("preset"), dict) else {}
             scene = f"synth {capture.views[0].camera.width} px x {len(capture.views)}"
             garment = f"{meta.get('garment', '?')} {preset.get('fit', '?')} {1000 * meta.get('looseness', 0):.0f} mm"
-            for settings, use_kp in sweep_runs(base, True) if args.sweep and k == 0 else [(base, False)]:
+            for settings, use_kp in sweep_runs(base, True) if args.sweep and k == 0 else [(base, args.keypoints)]:
                 kp = keypoints_of(capture, body, synth_body.joints) if use_kp else None
                 record(scene, meta.get("seed"), garment, settings, use_kp,
                        run_fit(capture, body, truth, cloth, kp, settings), synth_body.phenotype)
@@ -132,7 +136,7 @@ def main() -> None:
                                                      **SCENES[scene])
                 truth = Mesh(state.vertices, state.faces)
                 sweep = args.sweep and seed == args.seeds[0] and garment == args.garments[0]
-                for settings, use_kp in sweep_runs(base, True) if sweep else [(base, False)]:
+                for settings, use_kp in sweep_runs(base, True) if sweep else [(base, args.keypoints)]:
                     kp = keypoints_of(capture, body, state.joints) if use_kp else None
                     record(scene, seed, garment, settings, use_kp,
                            run_fit(capture, body, truth, cloth, kp, settings), shape)
