@@ -2,7 +2,8 @@
 """Time against vertex error of the body fit (``pgc body fit``, :func:`pgc.body.fit.fit_body`).
 
     python benchmarks/bench_body_fit.py [--seeds 0 1 2 3 4] [--scenes tiny default] [--sweep] [--out FILE]
-    python benchmarks/bench_body_fit.py --capture DIR [DIR ...]     # pgc synth captures (with ground_truth/)
+    python benchmarks/bench_body_fit.py --capture DIR [DIR ...] [--sweep]   # pgc synth captures (with ground_truth/)
+    python benchmarks/bench_body_fit.py --capture DIR --views 8 [--iterations N] [--keypoints]   # one setting
 
 Scenes (made in-process, :func:`pgc.testing.body_scenes.anny_capture`: an Anny body of a per-seed shape and pose,
 :func:`~pgc.testing.body_scenes.random_body`, in a tight and a loose shirt, masks and labels from the scene
@@ -10,8 +11,9 @@ renderer's exact layers): ``tiny`` 6 views at 64 px (the tiny synth preset's), `
 (the default preset's image size) of which the fit uses its ``views``. ``--sweep`` also varies the settings on
 the first seed (views used, iterations, keypoints from the true joints or not). ``--capture`` fits ``pgc synth``
 captures instead (the scene named by the capture's image size and view count, the garment by its kind, fit and
-looseness from the capture's metadata). Per fit: wall seconds, CPU seconds of the process, steps run, the
-silhouette IoU and the vertex error (mean, max; under the garment and elsewhere). Records follow docs/bench.md,
+looseness from the capture's metadata; ``--sweep`` varies the settings on the first capture). Per fit: wall
+seconds, CPU seconds of the process, steps run, the silhouette IoU, the vertex error (mean, max; under the garment
+and elsewhere) and the fitted shape (with the true one where known). Records follow docs/bench.md,
 "Record schema"; the table is printed.
 """
 
@@ -40,6 +42,14 @@ def keypoints_of(capture, body, joints: np.ndarray):
     return out
 
 
+def sweep_runs(base, use_kp: bool) -> list[tuple[Any, bool]]:
+    """The settings of a sweep: the base, fewer and more views, half the iterations, keypoints (``use_kp``)."""
+    runs = [(base, False)]
+    runs += [(base.model_copy(update={"views": v}), False) for v in (8, 24) if v != base.views]
+    runs.append((base.model_copy(update={"iterations": base.iterations // 2}), False))
+    return runs + ([(base, True)] if use_kp else [])
+
+
 def run_fit(capture, body, truth, cloth, keypoints, settings) -> dict[str, Any]:
     from pgc.body.fit import fit_body, vertex_error
 
@@ -48,7 +58,8 @@ def run_fit(capture, body, truth, cloth, keypoints, settings) -> dict[str, Any]:
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     err = vertex_error(fit.mesh.vertices, truth, cloth)
     return {"seconds": wall, "cpu_seconds": cpu, "steps": fit.figures["iterations"],
-            "silhouette_iou": fit.figures["silhouette_iou"],
+            "silhouette_iou": fit.figures["silhouette_iou"], "shape": fit.shape,
+            "start_search": fit.figures["start_search"],
             "errors": {"mean_m": err["mean"], "max_m": err["max"], "under_garment_mean_m": err["under_garment"]["mean"],
                        "under_garment_max_m": err["under_garment"]["max"], "exposed_mean_m": err["exposed"]["mean"]}}
 
@@ -60,6 +71,9 @@ def main() -> None:
     p.add_argument("--garments", nargs="+", default=["tight", "loose"])
     p.add_argument("--sweep", action="store_true", help="vary views, iterations and keypoints on the first seed")
     p.add_argument("--capture", nargs="+", type=Path, help="synthetic captures (with ground_truth/) instead")
+    p.add_argument("--views", type=int, help="views used (default: [stages.body_fit]'s)")
+    p.add_argument("--iterations", type=int, help="most steps (default: [stages.body_fit]'s)")
+    p.add_argument("--keypoints", action="store_true", help="keypoints at the true joints' projections")
     p.add_argument("--out", type=Path, default=Path("bench_body_fit.json"))
     args = p.parse_args()
 
@@ -69,14 +83,15 @@ def main() -> None:
     from pgc.types import Mesh
 
     body = Registry.discover().create("body_model", "anny")
-    base = BodyFitSettings()
+    base = BodyFitSettings(**{k: v for k, v in (("views", args.views), ("iterations", args.iterations)) if v})
     records: list[dict[str, Any]] = []
 
-    def record(scene: str, seed, garment: str, settings, keypoints: bool, result: dict[str, Any]) -> None:
+    def record(scene: str, seed, garment: str, settings, keypoints: bool, result: dict[str, Any],
+               true_shape: dict[str, float]) -> None:
         rec = {"role": "body_model", "implementation": "anny", "preset": scene,
                "settings": {"case": f"{scene} seed {seed} {garment}", "seed": seed, "garment": garment,
                             "views": settings.views, "iterations": settings.iterations, "keypoints": keypoints},
-               "error_key": "mean_m", "label": "body_fit", **result,
+               "error_key": "mean_m", "label": "body_fit", **result, "true_shape": true_shape,
                "versions": {"python": platform.python_version(), "numpy": np.__version__}}
         records.append(rec)
         e = rec["errors"]
@@ -93,16 +108,21 @@ def main() -> None:
     if args.capture:
         from pgc.io.capture import read_capture
         from pgc.io.mesh import read_mesh
+        from pgc.synth.ground_truth import read_body_model
 
-        for folder in args.capture:
+        for k, folder in enumerate(args.capture):
             capture = read_capture(folder)
             truth = read_mesh(folder / "ground_truth" / "body.obj")
             cloth = read_mesh(folder / "ground_truth" / "garment.obj")
+            synth_body = read_body_model(folder / "ground_truth")
             meta = capture.metadata
             preset = meta.get("preset") if isinstance(meta.get("preset"), dict) else {}
             scene = f"synth {capture.views[0].camera.width} px x {len(capture.views)}"
             garment = f"{meta.get('garment', '?')} {preset.get('fit', '?')} {1000 * meta.get('looseness', 0):.0f} mm"
-            record(scene, meta.get("seed"), garment, base, False, run_fit(capture, body, truth, cloth, None, base))
+            for settings, use_kp in sweep_runs(base, True) if args.sweep and k == 0 else [(base, args.keypoints)]:
+                kp = keypoints_of(capture, body, synth_body.joints) if use_kp else None
+                record(scene, meta.get("seed"), garment, settings, use_kp,
+                       run_fit(capture, body, truth, cloth, kp, settings), synth_body.phenotype)
         return
     from pgc.synth.render import scene_renderer
     from pgc.testing.body_scenes import anny_capture, random_body
@@ -115,15 +135,11 @@ def main() -> None:
                 capture, state, cloth = anny_capture(body, renderer, shape, rotations, (0.0, 0.0, 0.0), garment,
                                                      **SCENES[scene])
                 truth = Mesh(state.vertices, state.faces)
-                runs = [(base, False)]
-                if args.sweep and seed == args.seeds[0] and garment == args.garments[0]:
-                    runs += [(base.model_copy(update={"views": v}), False) for v in (4, 8, 16) if v != base.views]
-                    runs += [(base.model_copy(update={"iterations": n}), False) for n in (150, 600)]
-                    runs += [(base, True), (base.model_copy(update={"iterations": 150}), True)]
-                for settings, use_kp in runs:
+                sweep = args.sweep and seed == args.seeds[0] and garment == args.garments[0]
+                for settings, use_kp in sweep_runs(base, True) if sweep else [(base, args.keypoints)]:
                     kp = keypoints_of(capture, body, state.joints) if use_kp else None
                     record(scene, seed, garment, settings, use_kp,
-                           run_fit(capture, body, truth, cloth, kp, settings))
+                           run_fit(capture, body, truth, cloth, kp, settings), shape)
 
 
 if __name__ == "__main__":

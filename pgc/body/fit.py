@@ -13,10 +13,13 @@ Per view (every length in pixels of that view):
 - keypoints (:mod:`pgc.io.keypoints`): the squared pixel distance of the projected joints, by confidence;
 - a prior on the squared joint angles keeps what no view constrains at rest.
 Three phases narrow ``sigma`` (:data:`PHASES`; the silhouette term is scaled by ``sigma`` so its gradient keeps its
-size) and the band of pixels around the edge; the start translation brings the body's visible silhouette onto the
-masks (:func:`_placed_translation`); every joint that moves enough skin is posed (those that with their
-descendants skin less than :data:`MIN_SUBTREE_SKIN` of the vertices, hands' fingers and feet, stay at rest); the last phase stops when the loss no
-longer falls (``tolerance``). Docs: docs/body.md, "Body fit".
+size) and the band of pixels around the edge; the first two run on images downsampled to about :data:`COARSE_PX`
+pixels. The start shape's height comes from a search over the height parameter (:func:`_start_search`); the start
+translation brings the body's visible silhouette onto the masks (:func:`_placed_translation`); the views used are
+chosen far apart (:func:`spread_views`); every joint that moves enough skin is posed (those that with their
+descendants skin less than :data:`MIN_SUBTREE_SKIN` of the vertices, hands' fingers and feet, stay at rest); a phase
+stops once its loss stalls (:data:`STALL_SHARE`), the last also when it no longer falls (``tolerance``). Docs:
+docs/body.md, "Body fit".
 """
 
 from __future__ import annotations
@@ -37,8 +40,18 @@ if TYPE_CHECKING:
 
     from pgc.stages.body_fit import BodyFitSettings
 
-PHASES = ((0.25, 1.5), (0.4, 0.6), (0.35, 0.3))
-"""(share of the iterations, silhouette edge width sigma in pixels) of the coarse-to-fine phases."""
+PHASES = ((0.25, 1.5, True), (0.4, 0.6, True), (0.35, 0.3, False))
+"""(share of the iterations, silhouette edge width sigma in pixels of the phase's images, whether the phase runs on
+the coarse images) of the coarse-to-fine phases."""
+COARSE_PX = 96
+"""Coarse phases run on the images downsampled by the integer factor that brings their larger side nearest this
+many pixels (none for images this small)."""
+STALL_SHARE = 0.5
+"""A phase stops once its loss has not reached a new low for this share of the phase's steps."""
+START_PARAMETER = "height"
+"""The shape parameter searched for the start (:func:`_start_search`), when the body model has it."""
+START_VALUES = 5
+"""Values of :data:`START_PARAMETER` the start search evaluates, evenly over its range (ends excluded)."""
 BAND_SIGMAS = 6.0
 """Pixels within this many sigmas (at least BAND_MIN_PX) of the body's edge carry the silhouette loss."""
 BAND_MIN_PX = 2.0
@@ -106,6 +119,8 @@ class _ViewData:
     outside: "torch.Tensor"
     """(H + 2, W + 2) distance (px) to the mask, 0 inside and on the one-pixel frame outside the image."""
     keypoints: Keypoints | None
+    scale: int = 1
+    """Full-resolution pixels per pixel of these images (the coarse phases' downsampling factor)."""
 
 
 def check_capture_layers(capture: Capture, where: str) -> None:
@@ -119,18 +134,64 @@ def check_capture_layers(capture: Capture, where: str) -> None:
                            "fit needs the visible skin labelled (0 background, 1 body, 2 garment)")
 
 
-def _view_data(view, keypoints: Keypoints | None) -> _ViewData:
+def _outside(person: np.ndarray) -> "torch.Tensor":
+    """(H + 2, W + 2) distance (px), beyond :data:`INSIDE_TOLERANCE_PX`, of each pixel to the ``person`` (H, W) bool
+    pixels, on a one-pixel frame of zeros (nothing is known beyond the image)."""
     import torch
     from scipy.ndimage import distance_transform_edt
 
+    outside = np.maximum(distance_transform_edt(~person) - INSIDE_TOLERANCE_PX, 0.0)
+    return torch.as_tensor(np.pad(outside, 1), dtype=torch.float32)
+
+
+def _view_data(view, keypoints: Keypoints | None) -> _ViewData:
     seg = view.segmentation
     mask = view.mask if view.mask is not None else (seg != 0).astype(np.float32)
     person = (mask >= 0.5) | (seg != 0)
-    outside = np.maximum(distance_transform_edt(~person) - INSIDE_TOLERANCE_PX, 0.0)
-    outside = np.pad(outside, 1)  # 0 beyond the image: nothing is known there
     cam = view.camera
     return _ViewData(cam.name, cam.K, cam.R, cam.t, cam.width, cam.height, np.clip(mask, 0.0, 1.0),
-                     seg == BODY_LABEL, torch.as_tensor(outside, dtype=torch.float32), keypoints)
+                     seg == BODY_LABEL, _outside(person), keypoints)
+
+
+def coarse_factor(width: int, height: int) -> int:
+    """The integer downsampling factor of the coarse phases: the larger image side over :data:`COARSE_PX`, rounded
+    (at least 1)."""
+    return max(1, int(round(max(width, height) / COARSE_PX)))
+
+
+def _downsampled(v: _ViewData, f: int) -> _ViewData:
+    """``v`` at 1/``f`` of its resolution (the trailing rows and columns that fill no whole block dropped): the
+    mask's block means; body where the block's body pixels are at least its other person pixels; the person, for
+    the vertices-inside term, where any pixel of the block is; the camera's intrinsics scaled alike."""
+    if f == 1:
+        return v
+    h, w = v.height // f, v.width // f
+
+    def blocks(a: np.ndarray) -> np.ndarray:
+        return a[:h * f, :w * f].reshape(h, f, w, f).astype(np.float64).mean(axis=(1, 3))
+
+    person_fine = (v.mask >= 0.5) | v.body
+    body = blocks(v.body)
+    person = blocks(person_fine)
+    K = np.diag([1.0 / f, 1.0 / f, 1.0]) @ v.K
+    return _ViewData(v.name, K, v.R, v.t, w, h, blocks(v.mask), (body > 0) & (2 * body >= person),
+                     _outside(person > 0), v.keypoints, f)
+
+
+def spread_views(cameras: list, count: int) -> list[int]:
+    """Indices of ``count`` of ``cameras`` chosen far apart: from the first, each next the camera whose optical
+    axis makes the largest smallest angle with those chosen (all of them when there are fewer)."""
+    if count >= len(cameras):
+        return list(range(len(cameras)))
+    axes = np.array([np.asarray(c.R)[2] for c in cameras], np.float64)
+    chosen = [0]
+    nearest = axes @ axes[0]  # cosine to the nearest chosen axis
+    for _ in range(count - 1):
+        nearest[chosen] = np.inf
+        nxt = int(np.argmin(nearest))
+        chosen.append(nxt)
+        nearest = np.maximum(nearest, axes @ axes[nxt])
+    return sorted(chosen)
 
 
 def _rodrigues(w: "torch.Tensor") -> "torch.Tensor":
@@ -205,13 +266,27 @@ def _translation_init(views: list[_ViewData]) -> np.ndarray:
 
 def _coverage(uv: np.ndarray, depth: np.ndarray, faces: np.ndarray, width: int, height: int) -> np.ndarray:
     """(H, W) bool: the pixel centres a mesh covers, projected to ``uv`` (V, 2) px with camera depths (V,) (faces
-    with a vertex behind the camera are left out)."""
-    from pgc.geometry.raster import covered_pixels
-
-    covered = np.zeros(height * width, bool)
-    for _, pix, _ in covered_pixels(uv[faces[np.all(depth[faces] > 1e-3, axis=1)]], width, height):
-        covered[pix] = True
-    return covered.reshape(height, width)
+    with a vertex behind the camera are left out). Scanline rasterisation: each triangle's span of pixel centres
+    on each row it crosses, summed as +1 / -1 marks along the row."""
+    tri = uv[faces[np.all(depth[faces] > 1e-3, axis=1)]]
+    y0 = np.clip(np.ceil(tri[..., 1].min(axis=1) - 0.5), 0, height).astype(np.int64)
+    y1 = np.clip(np.floor(tri[..., 1].max(axis=1) - 0.5), -1, height - 1).astype(np.int64)
+    rows = np.maximum(y1 - y0 + 1, 0)
+    owner = np.repeat(np.arange(len(tri)), rows)
+    y = y0[owner] + np.arange(len(owner)) - np.repeat(np.cumsum(rows) - rows, rows)
+    a = tri[owner]
+    b = np.roll(a, -1, axis=1)  # the triangle's edges a -> b
+    yc = (y + 0.5)[:, None]
+    lo, hi = np.minimum(a[..., 1], b[..., 1]), np.maximum(a[..., 1], b[..., 1])
+    crosses = (yc >= lo) & (yc <= hi) & (hi > lo)
+    x = a[..., 0] + (yc - a[..., 1]) * (b[..., 0] - a[..., 0]) / np.where(hi > lo, b[..., 1] - a[..., 1], 1.0)
+    x0 = np.clip(np.ceil(np.where(crosses, x, np.inf).min(axis=1) - 0.5), 0, width)
+    x1 = np.clip(np.floor(np.where(crosses, x, -np.inf).max(axis=1) - 0.5), -1, width - 1)
+    span = x1 >= x0
+    y, x0, x1 = y[span], x0[span].astype(np.int64), x1[span].astype(np.int64)
+    n = height * (width + 1)
+    marks = np.bincount(y * (width + 1) + x0, minlength=n) - np.bincount(y * (width + 1) + x1 + 1, minlength=n)
+    return np.cumsum(marks.reshape(height, width + 1), axis=1)[:, :width] > 0
 
 
 def _placed_translation(views: list[_ViewData], vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -312,6 +387,84 @@ def _sample_outside(outside: "torch.Tensor", uv: "torch.Tensor") -> "torch.Tenso
             + (1 - fx) * fy * g[y0 + 1, x0] + fx * fy * g[y0 + 1, x0 + 1])
 
 
+class _Views:
+    """The views of one resolution with their cameras as torch tensors, and the data loss on them."""
+
+    def __init__(self, views: list[_ViewData], silhouette: _Silhouette, kp_index: dict[str, int]) -> None:
+        import torch
+
+        self.views = views
+        self.silhouette = silhouette
+        self.kp_index = kp_index
+        self.cams = [tuple(torch.tensor(m, dtype=torch.float32) for m in (v.K, v.R, v.t)) for v in views]
+
+    def loss(self, verts: "torch.Tensor", joints: "torch.Tensor", sigma: float) -> tuple["torch.Tensor", float]:
+        """The data loss of a posed body (mean over the views; every term in full-resolution pixels) at silhouette
+        edge width ``sigma`` (px of these images), and the mean silhouette IoU."""
+        import torch
+
+        total = torch.zeros((), dtype=verts.dtype)
+        iou = []
+        for v, (K, R, t) in zip(self.views, self.cams):
+            f2 = float(v.scale * v.scale)
+            pc = verts @ R.T + t
+            uv = (pc @ K.T)[:, :2] / pc[:, 2:3].clamp_min(1e-3)
+            sil, reach, j = self.silhouette.loss(v, uv, pc[:, 2], sigma)
+            iou.append(j)
+            inside = (_sample_outside(v.outside, uv) ** 2).mean()
+            total = total + sigma * v.scale * sil + f2 * (INSIDE_WEIGHT * inside + REACH_WEIGHT * reach)
+            if v.keypoints is not None:
+                idx = torch.as_tensor([self.kp_index[n] for n in v.keypoints.names])
+                jc = joints[idx] @ R.T + t
+                juv = (jc @ K.T)[:, :2] / jc[:, 2:3].clamp_min(1e-3)
+                conf = torch.as_tensor(v.keypoints.confidence, dtype=verts.dtype)
+                err = ((juv - torch.as_tensor(v.keypoints.xy / v.scale, dtype=verts.dtype)) ** 2).sum(-1)
+                total = total + f2 * KEYPOINT_WEIGHT * (conf * err).sum() / conf.sum().clamp_min(1e-6)
+        return total / len(self.views), float(np.mean(iou))
+
+
+def _start_search(body: BodyModel, shape: dict[str, float], views: _Views, sigma: float
+                  ) -> tuple[dict[str, float], np.ndarray, list[tuple[float, float]]]:
+    """The start shape and translation (metres): ``shape`` with :data:`START_PARAMETER` at the vertex of the
+    parabola through the lowest of the data losses, at the rest pose placed on the masks, of :data:`START_VALUES`
+    values and its two neighbours (the lowest itself when it is an end). Returns the shape, the translation and the
+    (value, loss) pairs evaluated."""
+    import torch
+
+    faces = np.asarray(body.faces)
+    rest = torch.eye(3, dtype=torch.float32).expand(1, len(body.joint_names), 3, 3)
+
+    def placed(value: float | None) -> tuple[dict[str, float], np.ndarray, "Any"]:
+        trial = dict(shape) if value is None else {**shape, START_PARAMETER: value}
+        with torch.no_grad():
+            out = body.forward_torch({k: torch.tensor([x], dtype=torch.float32) for k, x in trial.items()}, rest,
+                                     torch.zeros(1, 3, dtype=torch.float32))
+        shift = _placed_translation(views.views, out.vertices[0].double().numpy(), faces)
+        return trial, shift, out
+
+    if START_PARAMETER not in shape:
+        trial, shift, _ = placed(None)
+        return trial, shift, []
+    spec = body.parameters[START_PARAMETER]
+    values = spec.low + (spec.high - spec.low) * (np.arange(START_VALUES) + 0.5) / START_VALUES
+    losses = []
+    for value in values:
+        _, shift, out = placed(float(value))
+        with torch.no_grad():
+            move = torch.as_tensor(shift, dtype=torch.float32)
+            losses.append(float(views.loss(out.vertices[0] + move, out.joints[0] + move, sigma)[0]))
+    i = int(np.argmin(losses))
+    best = float(values[i])
+    if 0 < i < len(values) - 1:
+        below, at, above = losses[i - 1], losses[i], losses[i + 1]
+        curvature = below - 2.0 * at + above
+        if curvature > 0:
+            step = float(values[1] - values[0])
+            best = float(np.clip(best - 0.5 * step * (above - below) / curvature, values[i - 1], values[i + 1]))
+    trial, shift, _ = placed(best)
+    return trial, shift, [(float(x), y) for x, y in zip(values, losses)]
+
+
 def fit_body(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_name: str,
              keypoints: Mapping[str, Keypoints] | None = None, reporter: Reporter | None = None,
              where: str = "capture") -> BodyFit:
@@ -331,41 +484,35 @@ def _fit(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_n
          keypoints: Mapping[str, Keypoints] | None, reporter: Reporter | None, where: str) -> BodyFit:
     import torch
 
-    from pgc.sampling import spread
-
     check_capture_layers(capture, where)
     reporter = reporter or Reporter.silent()
     start = time.perf_counter()
-    chosen = spread(list(range(len(capture.views))), settings.views)
+    chosen = spread_views([v.camera for v in capture.views], settings.views)
     use_kp = bool(settings.keypoints and keypoints)
-    views = [_view_data(capture.views[i], (keypoints or {}).get(capture.views[i].camera.name) if use_kp else None)
-             for i in chosen]
+    full = [_view_data(capture.views[i], (keypoints or {}).get(capture.views[i].camera.name) if use_kp else None)
+            for i in chosen]
     names = body.joint_names
     kp_index = {n: i for i, n in enumerate(names)}
-    for v in views:
+    for v in full:
         if v.keypoints is not None:
             unknown = sorted(set(v.keypoints.names) - set(kp_index))
             if unknown:
                 raise PGCDataError(f"{where}: keypoints of view '{v.name}' name joints the body model "
                                    f"'{model_name}' lacks: {unknown[:5]}; its joints: {', '.join(names)}")
+    silhouette = _Silhouette(np.asarray(body.faces))
+    fine = _Views(full, silhouette, kp_index)
+    coarse = _Views([_downsampled(v, coarse_factor(v.width, v.height)) for v in full], silhouette, kp_index)
     dtype = torch.float32
     params = body.parameters
     low = torch.tensor([params[k].low for k in params], dtype=dtype)
     high = torch.tensor([params[k].high for k in params], dtype=dtype)
-    default = torch.tensor([params[k].default for k in params], dtype=dtype)
-    frac = ((default - low) / (high - low)).clamp(0.02, 0.98)
+    first = coarse if PHASES[0][2] else fine
+    shape0, start_shift, searched = _start_search(body, {k: params[k].default for k in params}, first, PHASES[0][1])
+    frac = ((torch.tensor([shape0[k] for k in params], dtype=dtype) - low) / (high - low)).clamp(0.02, 0.98)
     shape_logit = torch.log(frac / (1 - frac)).clone().requires_grad_(True)
     angles = torch.zeros(len(names), 3, dtype=dtype, requires_grad=True)
     posed = torch.as_tensor(posed_joints(body))
-    with torch.no_grad():
-        rest = body.forward_torch({k: default[i:i + 1] for i, k in enumerate(params)},
-                                  torch.eye(3, dtype=dtype).expand(1, len(names), 3, 3), torch.zeros(1, 3, dtype=dtype))
-    faces = np.asarray(body.faces)
-    start_shift = _placed_translation(views, rest.vertices[0].double().numpy(), faces)
     offset = torch.tensor(start_shift / TRANSLATION_SCALE, dtype=dtype, requires_grad=True)
-    silhouette = _Silhouette(faces)
-    cams = [(torch.tensor(v.K, dtype=dtype), torch.tensor(v.R, dtype=dtype), torch.tensor(v.t, dtype=dtype))
-            for v in views]
     opt = torch.optim.Adam([shape_logit, angles, offset], lr=settings.learning_rate)
 
     def shape_of(logit: torch.Tensor) -> dict[str, torch.Tensor]:
@@ -378,53 +525,40 @@ def _fit(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_n
 
     history: list[float] = []
     steps = 0
-    iou = []
-    with reporter.stage("body_fit", total=settings.iterations, views=len(views), keypoints=use_kp) as st:
-        for phase, (share, sigma) in enumerate(PHASES):
+    iou = 0.0
+    with reporter.stage("body_fit", total=settings.iterations, views=len(full), keypoints=use_kp) as st:
+        for phase, (share, sigma, on_coarse) in enumerate(PHASES):
+            views = coarse if on_coarse else fine
             n = max(1, int(round(share * settings.iterations)))
             last = phase == len(PHASES) - 1
+            best, best_step = np.inf, 0
             for i in range(n):
                 if last:
                     for g in opt.param_groups:
                         g["lr"] = settings.learning_rate * (0.1 ** (i / n))
                 opt.zero_grad()
                 out = pose()
-                verts, joints = out.vertices[0], out.joints[0]
-                loss_sil = torch.zeros((), dtype=dtype)
-                loss_in = torch.zeros((), dtype=dtype)
-                loss_reach = torch.zeros((), dtype=dtype)
-                loss_kp = torch.zeros((), dtype=dtype)
-                iou = []
-                for v, (K, R, t) in zip(views, cams):
-                    pc = verts @ R.T + t
-                    uv = (pc @ K.T)[:, :2] / pc[:, 2:3].clamp_min(1e-3)
-                    l, r, j = silhouette.loss(v, uv, pc[:, 2], sigma)
-                    loss_sil = loss_sil + sigma * l
-                    loss_reach = loss_reach + r
-                    iou.append(j)
-                    loss_in = loss_in + (_sample_outside(v.outside, uv) ** 2).mean()
-                    if v.keypoints is not None:
-                        idx = torch.as_tensor([kp_index[n] for n in v.keypoints.names])
-                        jc = joints[idx] @ R.T + t
-                        juv = (jc @ K.T)[:, :2] / jc[:, 2:3].clamp_min(1e-3)
-                        conf = torch.as_tensor(v.keypoints.confidence, dtype=dtype)
-                        err = ((juv - torch.as_tensor(v.keypoints.xy, dtype=dtype)) ** 2).sum(-1)
-                        loss_kp = loss_kp + (conf * err).sum() / conf.sum().clamp_min(1e-6)
-                loss = (loss_sil + INSIDE_WEIGHT * loss_in + REACH_WEIGHT * loss_reach + KEYPOINT_WEIGHT * loss_kp) / len(views) \
-                    + settings.pose_prior * 1e-3 * (angles ** 2).sum()
+                data, iou = views.loss(out.vertices[0], out.joints[0], sigma)
+                loss = data + settings.pose_prior * 1e-3 * (angles ** 2).sum()
                 loss.backward()
                 opt.step()
                 steps += 1
                 history.append(float(loss.detach()))
-                st.progress(steps, loss=history[-1], silhouette_iou=float(np.mean(iou)))
+                st.progress(steps, loss=history[-1], silhouette_iou=iou)
+                if history[-1] < best:
+                    best, best_step = history[-1], i
+                elif i - best_step >= STALL_SHARE * n:
+                    break
                 if last and i >= 20 and history[-21] - history[-1] < settings.tolerance * abs(history[-21]):
                     break
     shape = {k: float(x) for k, x in zip(params, (low + (high - low) * torch.sigmoid(shape_logit)).tolist())}
     rotations = _rodrigues(torch.where(posed[:, None], angles.detach(), 0.0).double()).numpy()
     translation = (TRANSLATION_SCALE * offset.detach().double()).numpy()
     mesh = body.mesh(shape, rotations, translation)
-    figures = {"views": len(views), "view_names": [v.name for v in views], "iterations": steps,
-               "keypoints": use_kp, "loss": history[-1], "silhouette_iou": float(np.mean(iou)),
+    figures = {"views": len(full), "view_names": [v.name for v in full], "iterations": steps,
+               "keypoints": use_kp, "loss": history[-1], "silhouette_iou": iou,
+               "start_search": {"parameter": START_PARAMETER, "start": shape0[START_PARAMETER],
+                                "tried": [list(pair) for pair in searched]} if searched else None,
                "seconds": round(time.perf_counter() - start, 3)}
     return BodyFit(model_name, dict(body.options.model_dump()), shape, tuple(names), rotations, translation, mesh,
                    figures)

@@ -20,11 +20,11 @@ MOTION_BODIES: tuple[str, ...] = get_args(MotionBody)
 class BodyFitSettings(Options):
     """The body fit (:func:`pgc.body.fit.fit_body`; the method and its measured accuracy: docs/body.md)."""
 
-    views: int = count(12, 1, 4096, "views the fit uses, spread over the capture (all when it has fewer)")
+    views: int = count(12, 1, 4096, "views the fit uses, chosen far apart over the capture (all when it has fewer)")
     iterations: int = count(300, 10, 100_000, "most Adam steps over the three coarse-to-fine phases")
     keypoints: bool = Field(True, description="use the capture's 2D keypoints (keypoints/<view>.json) when it has "
                                               "them")
-    tolerance: float = Field(5e-4, ge=0.0, le=1.0, description="the last phase stops when the loss fell by less "
+    tolerance: float = Field(5e-4, ge=0.0, le=1.0, description="the last phase also stops when the loss fell by less "
                                                                "than this fraction over its last 20 steps")
     learning_rate: float = Field(0.05, gt=0.0, le=1.0, description="Adam's step size (radians, metres/10 and "
                                                                    "shape logits), decayed in the last phase")
@@ -36,6 +36,6 @@ class BodyFitSettings(Options):
         "measured; a capture without a true body always moves on its fitted body (pgc reconstruct --body)"))
 
 
-STAGE = Stage(name="body_fit", command="reconstruct", version="1", inputs=("capture",),
+STAGE = Stage(name="body_fit", command="reconstruct", version="2", inputs=("capture",),
               outputs=("body.json", "body.ply"), folder="ASSET/stages/body_fit", role="body_model",
               settings=BodyFitSettings, events=("body_fit",))
