@@ -102,9 +102,9 @@ def pytest_terminal_summary(terminalreporter, config: pytest.Config) -> None:
 
 
 FILE_CPU_SECONDS = {
-    "test_splat_fit_loop.py": 136, "test_kill.py": 125, "test_sweep.py": 115, "test_demo.py": 110,
-    "test_isa_levels.py": 95, "test_xpbd.py": 75, "test_body_fit.py": 72, "test_splat_jax.py": 61,
-    "test_albedo_training.py": 45, "test_newton_cloth.py": 31,
+    "test_splat_fit_loop.py": 136, "test_kill.py": 125, "test_sweep.py": 115, "test_demo.py": 105,
+    "test_isa_levels.py": 105, "test_xpbd.py": 75, "test_body_fit.py": 72, "test_splat_jax.py": 61,
+    "test_albedo_training.py": 56, "test_newton_cloth.py": 40,
 }
 """The costliest test files' CPU seconds (``--cpu-durations``; docs/architecture.md, "Running the tests"), which
 order the files under pytest-xdist. test_demo's holds the session's ``tiny_demo`` (about 85 s), which the first of
