@@ -14,8 +14,7 @@ Per view (every length in pixels of that view):
 - a prior on the squared joint angles keeps what no view constrains at rest.
 Three phases narrow ``sigma`` (:data:`PHASES`; the silhouette term is scaled by ``sigma`` so its gradient keeps its
 size) and the band of pixels around the edge; the first two run on images downsampled to about :data:`COARSE_PX`
-pixels. The start shape's height comes from a search over the height parameter (:func:`_start_search`) from each of
-a few genders (:data:`START_ALTERNATIVES`); the start
+pixels. The start shape's height comes from a search over the height parameter (:func:`_start_search`); the start
 translation brings the body's visible silhouette onto the masks (:func:`_placed_translation`); the views used are
 chosen far apart (:func:`spread_views`); every joint that moves enough skin is posed (those that with their
 descendants skin less than :data:`MIN_SUBTREE_SKIN` of the vertices, hands' fingers and feet, stay at rest); a phase
@@ -53,9 +52,6 @@ START_PARAMETER = "height"
 """The shape parameter searched for the start (:func:`_start_search`), when the body model has it."""
 START_VALUES = 5
 """Values of :data:`START_PARAMETER` the start search evaluates, evenly over its range (ends excluded)."""
-START_ALTERNATIVES = ("gender", (0.1, 0.5, 0.9))
-"""A shape parameter and its values, each the start of its own search over :data:`START_PARAMETER` (the lowest loss
-wins), when the body model has it: Anny's gender moves the stature and the build alike."""
 BAND_SIGMAS = 6.0
 """Pixels within this many sigmas (at least BAND_MIN_PX) of the body's edge carry the silhouette loss."""
 BAND_MIN_PX = 2.0
@@ -511,11 +507,7 @@ def _fit(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_n
     low = torch.tensor([params[k].low for k in params], dtype=dtype)
     high = torch.tensor([params[k].high for k in params], dtype=dtype)
     first = coarse if PHASES[0][2] else fine
-    defaults = {k: params[k].default for k in params}
-    name, values = START_ALTERNATIVES
-    starts = [{**defaults, name: v} for v in values] if name in defaults else [defaults]
-    shape0, start_shift, searched = min((_start_search(body, trial, first, PHASES[0][1]) for trial in starts),
-                                        key=lambda found: min((loss for _, loss in found[2]), default=0.0))
+    shape0, start_shift, searched = _start_search(body, {k: params[k].default for k in params}, first, PHASES[0][1])
     frac = ((torch.tensor([shape0[k] for k in params], dtype=dtype) - low) / (high - low)).clamp(0.02, 0.98)
     shape_logit = torch.log(frac / (1 - frac)).clone().requires_grad_(True)
     angles = torch.zeros(len(names), 3, dtype=dtype, requires_grad=True)
@@ -565,7 +557,7 @@ def _fit(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_n
     mesh = body.mesh(shape, rotations, translation)
     figures = {"views": len(full), "view_names": [v.name for v in full], "iterations": steps,
                "keypoints": use_kp, "loss": history[-1], "silhouette_iou": iou,
-               "start_search": {"start": {k: shape0[k] for k in (START_PARAMETER, name) if k in shape0},
+               "start_search": {"parameter": START_PARAMETER, "start": shape0[START_PARAMETER],
                                 "tried": [list(pair) for pair in searched]} if searched else None,
                "seconds": round(time.perf_counter() - start, 3)}
     return BodyFit(model_name, dict(body.options.model_dump()), shape, tuple(names), rotations, translation, mesh,
