@@ -17,25 +17,8 @@ import pytest
 from pgc.cli import main
 from pgc.errors import PGCConfigError, PGCDataError
 from pgc.motion.drive import ClipOptions
+from pgc.testing.cloth_scenes import QUICK_ANIMATE_CONFIG
 
-CONFIG = """
-[simulator]
-use = ["xpbd-native", "xpbd-jax", "xpbd-torch"]
-[simulator.xpbd-native]
-substeps = 10
-iterations = 10
-settle_frames = 3
-[simulator.xpbd-jax]
-substeps = 10
-iterations = 10
-settle_frames = 3
-[simulator.xpbd-torch]
-substeps = 10
-iterations = 10
-settle_frames = 3
-[stages.animate]
-seconds = 0.4
-"""
 CLIP, IN_PLACE = "cmu:02_01", ClipOptions(in_place=True)
 
 
@@ -73,7 +56,7 @@ def scene(tmp_path_factory, default_body_model) -> Path:
     write_body_fit(root / "asset-fit" / "body_fit", BodyFit(
         "anny", dict(default_body_model.options.model_dump()), shape, tuple(default_body_model.joint_names),
         np.tile(np.eye(3), (joints, 1, 1)), np.zeros(3), Mesh(posed.vertices, posed.faces), {}))
-    (root / "config.toml").write_text(CONFIG)
+    (root / "config.toml").write_text(QUICK_ANIMATE_CONFIG)
     return root
 
 

@@ -11,25 +11,8 @@ import pytest
 
 from pgc.cli import main
 from pgc.io.lock import LOCK_NAME
+from pgc.testing.cloth_scenes import QUICK_ANIMATE_CONFIG
 
-CONFIG = """
-[simulator]
-use = ["xpbd-native", "xpbd-jax", "xpbd-torch"]
-[simulator.xpbd-native]
-substeps = 10
-iterations = 10
-settle_frames = 3
-[simulator.xpbd-jax]
-substeps = 10
-iterations = 10
-settle_frames = 3
-[simulator.xpbd-torch]
-substeps = 10
-iterations = 10
-settle_frames = 3
-[stages.animate]
-seconds = 0.4
-"""
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +38,7 @@ def scene(tmp_path_factory, default_body_model) -> Path:
     gt = root / "capture" / "ground_truth"
     gt.mkdir(parents=True)
     write_body_model(gt, body)
-    (root / "config.toml").write_text(CONFIG)
+    (root / "config.toml").write_text(QUICK_ANIMATE_CONFIG)
     return root
 
 

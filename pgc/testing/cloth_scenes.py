@@ -6,6 +6,27 @@ import numpy as np
 
 from pgc.types import BodyMotion, Mesh
 
+QUICK_ANIMATE_CONFIG = """
+[simulator]
+use = ["xpbd-native", "xpbd-jax", "xpbd-torch"]
+[simulator.xpbd-native]
+substeps = 10
+iterations = 10
+settle_frames = 3
+[simulator.xpbd-jax]
+substeps = 10
+iterations = 10
+settle_frames = 3
+[simulator.xpbd-torch]
+substeps = 10
+iterations = 10
+settle_frames = 3
+[stages.animate]
+seconds = 0.4
+"""
+"""A run configuration for animate tests: each XPBD simulator at 10 substeps x 10 iterations, 3 settle frames,
+0.4 s of motion."""
+
 
 def grid_cloth(n: int, size: float = 1.0, height: float = 0.0, vertical: bool = False) -> Mesh:
     """An n x n vertex square of side ``size`` (m), horizontal at y = ``height`` (or vertical in the xy plane,
