@@ -2,8 +2,9 @@
 cloth, the newton-vbd simulator) against ``--mode appearance`` (the truth on the run's own geometry); both modes
 recorded in metrics.json; bad modes refused with one clear error.
 
-The end-to-end case evaluates a run of the tiny demo in both modes and is slow-marked; its truth simulation runs
-with few substeps (``[stages.eval] truth_options``) to stay within minutes.
+The end-to-end cases are slow-marked: a run of the tiny demo evaluated in both modes, and a run on the body fitted to
+the demo's capture by the same motion, whose truth is the same simulation (shared: simulated once); it runs with few
+substeps (``[stages.eval] truth_options``) to stay within minutes.
 """
 
 from __future__ import annotations
@@ -69,17 +70,23 @@ def test_metrics_keep_each_mode_of_the_same_renders(tmp_path):
     assert set(with_modes(path, _result("appearance", 20.0))["modes"]) == {"appearance"}
 
 
-@pytest.mark.slow
-def test_independent_truth_is_simulated_on_its_own_and_both_modes_are_recorded(tiny_demo, tmp_path):
+TRUTH_OPTIONS = "truth_options = {substeps = 4, iterations = 4, settle_frames = 4}\n"
+
+
+@pytest.fixture(scope="module")
+def arms_up(tiny_demo, tmp_path_factory):
+    """A copy of the tiny demo's arms-up run evaluated in appearance mode, then in independent mode (its truth
+    simulated with newton-vbd, timed): the file's two end-to-end tests share it, the second's run on the fitted
+    body moving by the same motion, so needing the same truth simulation."""
     from pgc.pipeline.demo import demo_config
     from pgc.pipeline.evaluate import evaluate_run
-    from pgc.io.mesh import read_mesh
 
-    run, capture = tmp_path / "run", tiny_demo / "capture"
+    root = tmp_path_factory.mktemp("arms_up")
+    run, capture = root / "run", tiny_demo / "capture"
     shutil.copytree(tiny_demo / "runs" / "arms-up", run)
     (run / "metrics.json").unlink()
-    config = tmp_path / "eval.toml"
-    config.write_text("[stages.eval]\ntruth_options = {substeps = 4, iterations = 4, settle_frames = 4}\n")
+    config = root / "eval.toml"
+    config.write_text("[stages.eval]\n" + TRUTH_OPTIONS)
     registry = registry_with_newton()
     cfg = demo_config("tiny", config, registry=registry)
 
@@ -87,6 +94,18 @@ def test_independent_truth_is_simulated_on_its_own_and_both_modes_are_recorded(t
     start = time.perf_counter()
     independent = evaluate_run(run, capture, cfg, mode="independent", registry=registry)
     first = time.perf_counter() - start
+    return {"run": run, "capture": capture, "cfg": cfg, "registry": registry, "appearance": appearance,
+            "independent": independent, "first": first,
+            "truth_sim": sorted((run / "gt" / "truth_sim").iterdir())}
+
+
+@pytest.mark.slow
+def test_independent_truth_is_simulated_on_its_own_and_both_modes_are_recorded(arms_up, tmp_path):
+    from pgc.io.mesh import read_mesh
+    from pgc.pipeline.evaluate import evaluate_run
+
+    run, capture, cfg, registry = arms_up["run"], arms_up["capture"], arms_up["cfg"], arms_up["registry"]
+    appearance, independent, first = arms_up["appearance"], arms_up["independent"], arms_up["first"]
 
     figures = independent["truth_simulation"]
     assert figures["simulator"] == "newton-vbd" and figures["resolution_factor"] == 2.0
@@ -118,10 +137,12 @@ def test_independent_truth_is_simulated_on_its_own_and_both_modes_are_recorded(t
 
 
 @pytest.mark.slow
-def test_a_run_on_the_fitted_body_is_judged_against_a_truth_on_the_true_body(tiny_demo, tmp_path, capsys):
+def test_a_run_on_the_fitted_body_is_judged_against_a_truth_on_the_true_body(tiny_demo, arms_up, tmp_path, capsys):
     """``pgc reconstruct --body fit`` on the tiny demo's capture (its stages reused: only the body fit runs), a
-    run on that body, appearance mode refused in one line, independent mode judged against the truth simulated on
-    the true body moved by the run's motion, the body and the mode in metrics.json."""
+    run on that body by the demo run's arms-up motion, appearance mode refused in one line, independent mode judged
+    against the truth simulated on the true body moved by the run's motion: the very truth simulation of the demo's
+    own arms-up run (``arms_up``: the same cache key, so the same file, which is found and not simulated again), the
+    body and the mode in metrics.json."""
     from pgc.pipeline.demo import demo_config
     from pgc.pipeline.evaluate import evaluate_run
     from importlib import resources
@@ -132,8 +153,8 @@ def test_a_run_on_the_fitted_body_is_judged_against_a_truth_on_the_true_body(tin
     config = tmp_path / "fit.toml"
     preset = (resources.files("pgc") / "presets" / "demo_tiny.toml").read_text()  # the demo's stages, reused
     assert preset.count("[stages.eval]\n") == 1
-    config.write_text(preset.replace("[stages.eval]\n", "[stages.eval]\ntruth_options = {substeps = 4, iterations = 4, "
-                                     "settle_frames = 4}\n") + "\n[stages.body_fit]\niterations = 60\nviews = 4\n")
+    config.write_text(preset.replace("[stages.eval]\n", "[stages.eval]\n" + TRUTH_OPTIONS)
+                      + "\n[stages.body_fit]\niterations = 60\nviews = 4\n")
     shutil.copytree(tiny_demo / "asset" / "stages", asset / "stages")
     common = ["--config", str(config), "--quiet"]
     assert main(["reconstruct", str(capture), "--out", str(asset), "--body", "fit", "--json", *common]) == 0
@@ -141,7 +162,7 @@ def test_a_run_on_the_fitted_body_is_judged_against_a_truth_on_the_true_body(tin
     seconds = json.loads((asset / "timings.json").read_text())["seconds"]
     assert seconds["body_fit"] > 0 and seconds["mesh"] == seconds["material"] == 0.0  # only the body fit ran
     assert (asset / "body_fit" / "body.json").is_file()
-    assert main(["animate", str(asset), "--motion", "goalpost", "--out", str(run), *common]) == 0
+    assert main(["animate", str(asset), "--motion", "arms-up", "--out", str(run), *common]) == 0
     assert json.loads((run / "run.json").read_text())["body"] == "fit"
     assert main(["render", str(run), *common]) == 0
 
@@ -151,14 +172,23 @@ def test_a_run_on_the_fitted_body_is_judged_against_a_truth_on_the_true_body(tin
     assert err.count("\n") == 1 and "Traceback" not in err and "--mode independent" in err
     assert not (run / "metrics.json").exists()
 
-    truth = truth_body_motion(run, capture)  # the demo's goalpost on the true body, not the run's fitted one
-    demo_body = np.load(tiny_demo / "runs" / "goalpost" / "body.npz")["vertices"]
+    truth = truth_body_motion(run, capture)  # the demo's arms-up on the true body, not the run's fitted one
+    demo_body = np.load(tiny_demo / "runs" / "arms-up" / "body.npz")["vertices"]
     np.testing.assert_allclose(truth.vertices, demo_body, atol=1e-5)
     assert np.abs(np.load(run / "body.npz")["vertices"] - demo_body).max() > 1e-3
 
+    shared = arms_up["truth_sim"]  # the demo run's truth simulation, its .json figures and its .npz
+    assert sorted(p.suffix for p in shared) == [".json", ".npz"]
+    (run / "gt" / "truth_sim").mkdir(parents=True, exist_ok=True)
+    for path in shared:
+        shutil.copy2(path, run / "gt" / "truth_sim" / path.name)
     registry = registry_with_newton()
     result = evaluate_run(run, capture, demo_config("tiny", config, registry=registry), mode="independent",
                           registry=registry)
+    # the same truth simulation: found under the same key (a truth moved by the fitted body would have another key
+    # and be simulated into a second file), its figures the demo run's
+    assert sorted(p.name for p in (run / "gt" / "truth_sim").iterdir()) == [p.name for p in shared]
+    assert result["truth_simulation"] == arms_up["independent"]["truth_simulation"]
     doc = json.loads((run / "metrics.json").read_text())
     assert doc["mode"] == result["mode"] == "independent" and doc["body"] == result["body"] == "fit"
     assert doc["modes"]["independent"]["truth_simulation"]["simulator"] == "newton-vbd"
