@@ -320,6 +320,11 @@ def main() -> None:
         if args.mode == "truth":
             fitted = oracle_capture(folder, removed, cfg)
             params, radiance, base, seconds, figures = fit_truth(fitted, cfg, folder, start)
+            adam = (figures.get("polish") or {}).get("adam")
+            if adam:
+                print(f"  Adam alone: rough {adam['roughness']:.3f} sheen {np.round(adam['sheen_color'], 3)} sheen_rough "
+                      f"{adam['sheen_roughness']:.3f} radiance {np.round(adam['radiance'], 3)}; polish "
+                      f"{ {k: v for k, v in figures['polish'].items() if k != 'adam'} }", flush=True)
             if args.loss_spp:
                 losses = fit_losses(folder, fitted, cfg, params, radiance, args.loss_spp)
         else:
@@ -330,7 +335,8 @@ def main() -> None:
         true_base = texture_mean(gt.material.base_color)
         row = {"fabric": fabric, "seed": seed, "light": light, "mode": args.mode, "removed": list(removed),
                "start": start, "seconds": seconds,
-               "iterations": figures.get("iterations"), "stopped": figures.get("stopped"), **losses,
+               "iterations": figures.get("iterations"), "stopped": figures.get("stopped"),
+               "polish": figures.get("polish"), **losses,
                "fit": {k: v for k, v in params.items() if k != "base_color"},
                "true": true, "radiance": np.asarray(radiance).tolist(),
                "base_mean": base.tolist(), "true_base_mean": true_base.tolist(),
