@@ -15,9 +15,9 @@ MAX_DAMPING = 1e8
 class LeastSquaresResult:
     x: np.ndarray
     cost: float
-    """``|residual(x)|^2``."""
+    """The cost at ``x``: ``|residual(x)|^2`` (``r_a . r_b`` for two estimates)."""
     initial_cost: float
-    """``|residual(x0)|^2``."""
+    """The cost at ``x0``."""
     iterations: int
     """Jacobians evaluated."""
     stopped: str
@@ -34,17 +34,25 @@ def levenberg_marquardt(residual: Callable[[np.ndarray], np.ndarray],
     ``project`` maps the trial point into the feasible set (e.g. clamps to bounds); a trial that lowers the cost
     is accepted and the damping divided by 3, else the damping is multiplied by 4 and the step solved again.
     Stops after ``iterations`` Jacobians, once an accepted step moves no coordinate more than
-    ``step_tolerance``, or when the damping exceeds :data:`MAX_DAMPING`."""
+    ``step_tolerance``, or when the damping exceeds :data:`MAX_DAMPING`.
+
+    Noisy residuals (Monte Carlo renders): ``residual`` may return two independent estimates ``(2, n)`` of the
+    same expected residuals, and ``jacobian`` their Jacobians ``(2, n, p)``. The cost is then ``r_a . r_b``,
+    whose expectation is ``|E r|^2``; ``|r_a|^2`` would add the estimates' variance, which depends on ``x``
+    and moves the minimum toward parameters that render with less noise. The step uses the gradient
+    ``(J_a^T r_b + J_b^T r_a) / 2`` and ``(J_a^T J_a + J_b^T J_b) / 2`` for ``J^T J``."""
     x = np.asarray(x0, np.float64).copy()
     r = residual(x)
-    cost = initial = float(r @ r)
+    cost = initial = _cost(r)
     for iteration in range(1, iterations + 1):
         J = jacobian(x, r)
-        JtJ, Jtr = J.T @ J, J.T @ r
+        Ja, Jb = (J, J) if J.ndim == 2 else J
+        ra, rb = (r, r) if r.ndim == 1 else r
+        JtJ, Jtr = (Ja.T @ Ja + Jb.T @ Jb) / 2.0, (Ja.T @ rb + Jb.T @ ra) / 2.0
         while True:
             trial = project(x - np.linalg.solve(JtJ + damping * np.diag(np.diag(JtJ) + 1e-12), Jtr))
             r_trial = residual(trial)
-            trial_cost = float(r_trial @ r_trial)
+            trial_cost = _cost(r_trial)
             if trial_cost < cost:
                 moved = float(np.abs(trial - x).max())
                 x, r, cost, damping = trial, r_trial, trial_cost, max(damping / 3.0, 1e-9)
@@ -55,3 +63,8 @@ def levenberg_marquardt(residual: Callable[[np.ndarray], np.ndarray],
         if moved <= step_tolerance:
             return LeastSquaresResult(x, cost, initial, iteration, "converged")
     return LeastSquaresResult(x, cost, initial, iterations, "iterations")
+
+
+def _cost(r: np.ndarray) -> float:
+    """``|r|^2``, or ``r_a . r_b`` for two estimates."""
+    return float(r @ r) if r.ndim == 1 else float(r[0] @ r[1])
