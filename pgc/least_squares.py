@@ -40,7 +40,9 @@ def levenberg_marquardt(residual: Callable[[np.ndarray], np.ndarray],
     same expected residuals, and ``jacobian`` their Jacobians ``(2, n, p)``. The cost is then ``r_a . r_b``,
     whose expectation is ``|E r|^2``; ``|r_a|^2`` would add the estimates' variance, which depends on ``x``
     and moves the minimum toward parameters that render with less noise. The step uses the gradient
-    ``(J_a^T r_b + J_b^T r_a) / 2`` and ``(J_a^T J_a + J_b^T J_b) / 2`` for ``J^T J``."""
+    ``(J_a^T r_b + J_b^T r_a) / 2`` and, for ``J^T J``, ``(J_a^T J_b + J_b^T J_a) / 2`` with its eigenvalues
+    raised to at least 1e-9 of the largest: ``J_a^T J_a`` would add the Jacobian's own noise to the curvature,
+    which shortens the steps along weakly determined directions to a crawl."""
     x = np.asarray(x0, np.float64).copy()
     r = residual(x)
     cost = initial = _cost(r)
@@ -48,7 +50,7 @@ def levenberg_marquardt(residual: Callable[[np.ndarray], np.ndarray],
         J = jacobian(x, r)
         Ja, Jb = (J, J) if J.ndim == 2 else J
         ra, rb = (r, r) if r.ndim == 1 else r
-        JtJ, Jtr = (Ja.T @ Ja + Jb.T @ Jb) / 2.0, (Ja.T @ rb + Jb.T @ ra) / 2.0
+        JtJ, Jtr = _normal_matrix(Ja, Jb), (Ja.T @ rb + Jb.T @ ra) / 2.0
         while True:
             trial = project(x - np.linalg.solve(JtJ + damping * np.diag(np.diag(JtJ) + 1e-12), Jtr))
             r_trial = residual(trial)
@@ -68,3 +70,12 @@ def levenberg_marquardt(residual: Callable[[np.ndarray], np.ndarray],
 def _cost(r: np.ndarray) -> float:
     """``|r|^2``, or ``r_a . r_b`` for two estimates."""
     return float(r @ r) if r.ndim == 1 else float(r[0] @ r[1])
+
+
+def _normal_matrix(Ja: np.ndarray, Jb: np.ndarray) -> np.ndarray:
+    """``J^T J`` for one Jacobian; for two independent estimates, their symmetrised cross product made
+    positive definite (see :func:`levenberg_marquardt`)."""
+    if Ja is Jb:
+        return Ja.T @ Ja
+    w, v = np.linalg.eigh((Ja.T @ Jb + Jb.T @ Ja) / 2.0)
+    return (v * np.maximum(w, 1e-9 * w.max())) @ v.T
