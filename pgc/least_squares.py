@@ -50,7 +50,7 @@ def levenberg_marquardt(residual: Callable[[np.ndarray], np.ndarray],
         J = jacobian(x, r)
         Ja, Jb = (J, J) if J.ndim == 2 else J
         ra, rb = (r, r) if r.ndim == 1 else r
-        JtJ, Jtr = _normal_matrix(Ja, Jb), (Ja.T @ rb + Jb.T @ ra) / 2.0
+        JtJ, Jtr = _normal_matrix(Ja, Jb), (_dot(Ja, rb) + _dot(Jb, ra)) / 2.0
         while True:
             trial = project(x - np.linalg.solve(JtJ + damping * np.diag(np.diag(JtJ) + 1e-12), Jtr))
             r_trial = residual(trial)
@@ -76,6 +76,12 @@ def _normal_matrix(Ja: np.ndarray, Jb: np.ndarray) -> np.ndarray:
     """``J^T J`` for one Jacobian; for two independent estimates, their symmetrised cross product made
     positive definite (see :func:`levenberg_marquardt`)."""
     if Ja is Jb:
-        return Ja.T @ Ja
-    w, v = np.linalg.eigh((Ja.T @ Jb + Jb.T @ Ja) / 2.0)
+        return _dot(Ja, Ja)
+    w, v = np.linalg.eigh((_dot(Ja, Jb) + _dot(Jb, Ja)) / 2.0)
     return (v * np.maximum(w, 1e-9 * w.max())) @ v.T
+
+
+def _dot(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``A^T B`` summed over the rows in a fixed order (numpy's own loops, not a multi-threaded BLAS whose
+    partial sums depend on the thread count): the solver's result is the same bytes on any machine load."""
+    return np.einsum("ij,i...->j...", A, B)
