@@ -237,6 +237,7 @@ def _polish(pool: ShardPool, state: np.ndarray, n_unit: int, values: Callable[[n
             settings: MaterialFitSettings) -> tuple[np.ndarray, dict[str, Any]]:
     """Levenberg-Marquardt from ``state`` (see the module docstring): the polished state and its figures."""
     start_time = time.perf_counter()
+    seeds = (settings.seed, settings.seed + 1_000_003)  # two independent renders of every point
 
     def residual(s: np.ndarray) -> np.ndarray:
         return np.stack([pool.residual(values(s), settings.polish_spp, seed) for seed in seeds])
@@ -249,8 +250,6 @@ def _polish(pool: ShardPool, state: np.ndarray, n_unit: int, values: Callable[[n
             shifted[j] += step
             columns.append((residual(shifted) - r) / step)
         return np.stack(columns, 2)
-
-    seeds = (settings.seed, settings.seed + 1_000_003)
 
     def project(s: np.ndarray) -> np.ndarray:
         return np.concatenate([np.clip(s[:n_unit], 0.0, 1.0), s[n_unit:]])
