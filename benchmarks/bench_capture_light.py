@@ -322,8 +322,8 @@ def main() -> None:
             params, radiance, base, seconds, figures = fit_truth(fitted, cfg, folder, start)
             adam = (figures.get("polish") or {}).get("adam")
             if adam:
-                print(f"  Adam alone: rough {adam['roughness']:.3f} sheen {np.round(adam['sheen_color'], 3)} sheen_rough "
-                      f"{adam['sheen_roughness']:.3f} radiance {np.round(adam['radiance'], 3)}; polish "
+                print(f"  Adam alone: rough {adam['roughness']:.3f} sheen {np.round(adam['sheen_color'], 3)} "
+                      f"sheen_rough {adam['sheen_roughness']:.3f} radiance {np.round(adam['radiance'], 3)}; polish "
                       f"{ {k: v for k, v in figures['polish'].items() if k != 'adam'} }", flush=True)
             if args.loss_spp:
                 losses = fit_losses(folder, fitted, cfg, params, radiance, args.loss_spp)
