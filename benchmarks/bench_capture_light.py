@@ -13,7 +13,8 @@ over the tiny demo's settings) under the capture's recorded light:
   identifies, without reconstruction or albedo-estimation errors;
 - ``--mode pipeline``: ``pgc reconstruct`` end to end (reconstructed mesh, estimated base colour).
 Reported per run: fitted and true roughness, sheen colour, sheen roughness, light radiance, the mean base
-colour over the garment's texels, their relative errors, and the fit's seconds. The sheen colour and the base
+colour over the garment's texels, their relative errors, and the fit's seconds (with the polish, its
+figures and Adam's end point: ``polish``). The sheen colour and the base
 colour are also given in the truth's units, times the fitted-over-true radiance per channel: the exact null
 space ``(base_c, sheen_c, light_c) -> (s base_c, s sheen_c, light_c / s)`` (docs/pbr.md) makes only those
 products identifiable when the base-colour texture's scale is not known.
