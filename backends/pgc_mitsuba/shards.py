@@ -245,10 +245,7 @@ class ShardPool:
                 results[s] = self.scene.render(self.local_index[film, s], values, seed + s, seed_grad + s)
         for s in parts:
             if self.owner[s] is not None:
-                status, payload = self.workers[self.owner[s]].recv()
-                if status != "ok":
-                    raise RuntimeError(f"material fit worker: {payload}")
-                results[s] = payload
+                results[s] = self._reply(s)
         loss = sum(results[s][0] for s in parts)
         grads = [sum(results[s][1][k] for s in parts) for k in range(len(values))]
         return float(loss), grads
@@ -264,11 +261,15 @@ class ShardPool:
                    for f, s in order if self.owner[s] is None}
         for f, s in order:
             if self.owner[s] is not None:
-                status, payload = self.workers[self.owner[s]].recv()
-                if status != "ok":
-                    raise RuntimeError(f"material fit worker: {payload}")
-                results[f, s] = payload
+                results[f, s] = self._reply(s)
         return np.concatenate([results[key] for key in order])
+
+    def _reply(self, shard: int) -> Any:
+        """The next answer of the worker that owns ``shard``; a worker's error is raised here."""
+        status, payload = self.workers[self.owner[shard]].recv()
+        if status != "ok":
+            raise RuntimeError(f"material fit worker: {payload}")
+        return payload
 
     def close(self) -> None:
         for worker in self.workers:
