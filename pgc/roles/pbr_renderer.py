@@ -93,8 +93,7 @@ class MaterialFitSettings(Options):
     iteration: 2 x (variables + 1) renders of every film at ``polish_spp`` (pgc-sheen: 18), plus 2 per
     rejected trial: 70-170 s on the 12-view 48 px in-family controls, 1.7-4.5x Adam's seconds. On the five
     controls (seed 0, uniform light) it took the roughness from 15-72 % off to 3-21 % and the sheen colour from
-    33-69 % to 2-45 % (what remains on the knits and the satin: mostly their weave's mismatch; docs/pbr.md,
-    "The polish")."""
+    33-69 % to 2-45 % (on the knit, what remains is its weave's mismatch; docs/pbr.md, "The polish")."""
     polish_spp: int = count(64, 1, MAX_SPP)
     """Samples per pixel of the polish's renders (low-discrepancy sampler). Their noise, not the optimiser,
     bounds where the polish ends along a weakly determined direction."""
