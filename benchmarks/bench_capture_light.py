@@ -13,7 +13,8 @@ over the tiny demo's settings) under the capture's recorded light:
   identifies, without reconstruction or albedo-estimation errors;
 - ``--mode pipeline``: ``pgc reconstruct`` end to end (reconstructed mesh, estimated base colour).
 Reported per run: fitted and true roughness, sheen colour, sheen roughness, light radiance, the mean base
-colour over the garment's texels, their relative errors, and the fit's seconds. The sheen colour and the base
+colour over the garment's texels, their relative errors, and the fit's seconds (with the polish, its
+figures and Adam's end point: ``polish``). The sheen colour and the base
 colour are also given in the truth's units, times the fitted-over-true radiance per channel: the exact null
 space ``(base_c, sheen_c, light_c) -> (s base_c, s sheen_c, light_c / s)`` (docs/pbr.md) makes only those
 products identifiable when the base-colour texture's scale is not known.
@@ -320,6 +321,11 @@ def main() -> None:
         if args.mode == "truth":
             fitted = oracle_capture(folder, removed, cfg)
             params, radiance, base, seconds, figures = fit_truth(fitted, cfg, folder, start)
+            adam = (figures.get("polish") or {}).get("adam")
+            if adam:
+                print(f"  Adam alone: rough {adam['roughness']:.3f} sheen {np.round(adam['sheen_color'], 3)} "
+                      f"sheen_rough {adam['sheen_roughness']:.3f} radiance {np.round(adam['radiance'], 3)}; polish "
+                      f"{ {k: v for k, v in figures['polish'].items() if k != 'adam'} }", flush=True)
             if args.loss_spp:
                 losses = fit_losses(folder, fitted, cfg, params, radiance, args.loss_spp)
         else:
@@ -330,7 +336,8 @@ def main() -> None:
         true_base = texture_mean(gt.material.base_color)
         row = {"fabric": fabric, "seed": seed, "light": light, "mode": args.mode, "removed": list(removed),
                "start": start, "seconds": seconds,
-               "iterations": figures.get("iterations"), "stopped": figures.get("stopped"), **losses,
+               "iterations": figures.get("iterations"), "stopped": figures.get("stopped"),
+               "polish": figures.get("polish"), **losses,
                "fit": {k: v for k, v in params.items() if k != "base_color"},
                "true": true, "radiance": np.asarray(radiance).tolist(),
                "base_mean": base.tolist(), "true_base_mean": true_base.tolist(),

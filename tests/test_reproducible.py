@@ -113,7 +113,8 @@ def test_material_fit_is_identical_whatever_the_thread_count(monkeypatch):
     capture = synthetic_capture(Material("pgc-sheen", {"roughness": 0.5}, texture), n_views=4, size=48, spp=16)
     renderer = default_registry().create("pbr_renderer", "mitsuba", {"spp": 4, "max_depth": 2})
     # several blocks per film; two processes even for this small film when two cores are allotted
-    settings = FAST.model_copy(update={"max_iterations": 10, "max_image_side": 48, "parallel_min_pixels": 0})
+    settings = FAST.model_copy(update={"max_iterations": 10, "max_image_side": 48, "parallel_min_pixels": 0,
+                                       "polish": True, "polish_iterations": 2, "polish_spp": 8})
     import pgc_mitsuba.shards as shards
 
     started = []

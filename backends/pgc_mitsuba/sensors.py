@@ -99,9 +99,10 @@ def _film(width: int, height: int, alpha: bool) -> dict[str, Any]:
             "pixel_format": "rgba" if alpha else "rgb", "sample_border": False}
 
 
-def pinhole_sensor(cameras: Camera | list[Camera], spp: int) -> Any:
+def pinhole_sensor(cameras: Camera | list[Camera], spp: int, sampler: str = "independent") -> Any:
     """A sensor rendering ``cameras`` (one, or several of one image size tiled left to right on one RGBA
-    film: camera k owns film columns [k W, (k + 1) W)) with ``spp`` samples per pixel."""
+    film: camera k owns film columns [k W, (k + 1) W)) with ``spp`` samples per pixel of Mitsuba's
+    ``sampler``."""
     _register()
     mi = mitsuba()
     cameras = [cameras] if isinstance(cameras, Camera) else list(cameras)
@@ -110,7 +111,7 @@ def pinhole_sensor(cameras: Camera | list[Camera], spp: int) -> Any:
         raise PGCDataError("pinhole_sensor: tiled cameras must share one image size, got "
                            f"{sorted({(c.width, c.height) for c in cameras})}")
     sensor = mi.load_dict({"type": "pgc_pinhole", "film": _film(width * len(cameras), height, True),
-                           "sampler": {"type": "independent", "sample_count": int(spp)}})
+                           "sampler": {"type": sampler, "sample_count": int(spp)}})
     sensor.set_cameras(cameras, width)
     return sensor
 

@@ -31,6 +31,11 @@ from pgc_mitsuba.scene import scene_dict
 from pgc_mitsuba.sensors import pinhole_sensor
 
 
+RESIDUAL_SAMPLER = "ldsampler"
+"""Mitsuba's sampler of :meth:`ShardScene.residual` (low discrepancy, as the synthetic captures: at 64 spp its
+residuals' noise on the fit's pixels was a tenth of the ``independent`` sampler's)."""
+
+
 @dataclass
 class ShardFilm:
     """One shard's part of a film: views of one image size tiled left to right."""
@@ -77,8 +82,12 @@ class ShardScene:
         self.unit_envmap = mi.TensorXf(self.params["light.data"]) if spec.light.envmap is not None else None
         self.films = [(pinhole_sensor(f.cameras, spec.spp), mi.TensorXf(f.target), mi.TensorXf(f.weight[..., None]),
                        f.count) for f in films]
+        self.cameras = [f.cameras for f in films]
+        self.residual_sensors: dict[tuple[int, int], Any] = {}
 
-    def render(self, film: int, values: list[np.ndarray], seed: int, seed_grad: int) -> tuple[float, list[np.ndarray]]:
+    def _set(self, values: list[np.ndarray], grad: bool) -> Any:
+        """Set the scene's values (those of ``spec.keys``, then the RGB radiance), tracking their gradients
+        when ``grad``; returns the radiance variable."""
         mi = mitsuba()
         import drjit as dr
 
@@ -87,25 +96,47 @@ class ShardScene:
             variable = self.kinds[key](*[float(x) for x in np.asarray(value).reshape(-1)])
             dr.make_opaque(variable)  # a literal would be baked into the kernel: a new compilation every step
             self.params[key] = variable
-            dr.enable_grad(self.params[key])
-        sensor, target, weight, count = self.films[film]
+            if grad:
+                dr.enable_grad(self.params[key])
         rgb = [float(x) for x in np.asarray(radiance).reshape(3)]
-        if self.unit_envmap is None:
-            gain = mi.Color3f(*rgb)
-            dr.make_opaque(gain)
+        gain = mi.Color3f(*rgb) if self.unit_envmap is None else mi.TensorXf(np.asarray(rgb, np.float32),
+                                                                             shape=(1, 1, 3))
+        dr.make_opaque(gain)
+        if grad:
             dr.enable_grad(gain)
+        if self.unit_envmap is None:
             self.params["light.radiance.value"] = gain
         else:
-            gain = mi.TensorXf(np.asarray(rgb, np.float32), shape=(1, 1, 3))
-            dr.make_opaque(gain)
-            dr.enable_grad(gain)
             self.params["light.data"] = self.unit_envmap * gain
         self.params.update()
+        return gain
+
+    def render(self, film: int, values: list[np.ndarray], seed: int, seed_grad: int) -> tuple[float, list[np.ndarray]]:
+        """The loss of shard film ``film`` at ``values`` and its gradient (``spec.spp`` samples per pixel)."""
+        mi = mitsuba()
+        import drjit as dr
+
+        gain = self._set(values, grad=True)
+        sensor, target, weight, count = self.films[film]
         img = mi.render(self.scene, self.params, sensor=sensor, spp=self.spec.spp, seed=seed, seed_grad=seed_grad)
         loss = dr.sum(weight * dr.square(img[:, :, :3] - target), axis=None) / count
         dr.backward(loss)
         grads = [np.asarray(dr.grad(self.params[key]), dtype=np.float64).reshape(-1) for key in self.spec.keys]
         return float(loss.array[0]), [*grads, np.asarray(dr.grad(gain), dtype=np.float64).reshape(-1)]
+
+    def residual(self, film: int, values: list[np.ndarray], spp: int, seed: int) -> np.ndarray:
+        """The weighted residuals ``sqrt(weight / count) (render - target)`` of shard film ``film`` at
+        ``values``, flattened (float64; their squares sum to the shard's loss), from a render at ``spp``
+        samples per pixel of :data:`RESIDUAL_SAMPLER` with ``seed``, without gradients."""
+        mi = mitsuba()
+        import drjit as dr
+
+        self._set(values, grad=False)
+        _, target, weight, count = self.films[film]
+        if (film, spp) not in self.residual_sensors:
+            self.residual_sensors[film, spp] = pinhole_sensor(self.cameras[film], spp, RESIDUAL_SAMPLER)
+        img = mi.render(self.scene, sensor=self.residual_sensors[film, spp], spp=spp, seed=seed)
+        return np.asarray(dr.sqrt(weight / count) * (img[:, :, :3] - target), dtype=np.float64).reshape(-1)
 
 
 def split_film(cameras: list[Camera], targets: list[np.ndarray], weights: list[np.ndarray],
@@ -119,7 +150,8 @@ def split_film(cameras: list[Camera], targets: list[np.ndarray], weights: list[n
 
 def serve(inbox: Connection, outbox: Connection) -> None:
     """Worker process: build the scene from the first message (spec, films; None for films owned elsewhere),
-    then answer render requests (film, values, seed, seed_grad) until the pipe closes or None arrives."""
+    then answer requests (method, film, arguments) for :meth:`ShardScene.render` or :meth:`ShardScene.residual`
+    until the pipe closes or None arrives."""
     mitsuba()
     import drjit as dr
 
@@ -134,9 +166,9 @@ def serve(inbox: Connection, outbox: Connection) -> None:
             return
         if request is None:
             return
-        film, values, seed, seed_grad = request
+        method, film, arguments = request
         try:
-            outbox.send(("ok", scene.render(index[film], values, seed, seed_grad)))
+            outbox.send(("ok", getattr(scene, method)(index[film], *arguments)))
         except Exception as exc:  # noqa: BLE001 - reported to the parent, which raises it
             outbox.send(("error", f"{type(exc).__name__}: {exc}"))
 
@@ -205,20 +237,39 @@ class ShardPool:
         parts = range(len(self.films[film]))
         for s in parts:
             if self.owner[s] is not None:
-                self.workers[self.owner[s]].send((self.flat_index[film, s], values, seed + s, seed_grad + s))
+                self.workers[self.owner[s]].send(("render", self.flat_index[film, s], (values, seed + s,
+                                                                                       seed_grad + s)))
         results: dict[int, tuple[float, list[np.ndarray]]] = {}
         for s in parts:
             if self.owner[s] is None:
                 results[s] = self.scene.render(self.local_index[film, s], values, seed + s, seed_grad + s)
         for s in parts:
             if self.owner[s] is not None:
-                status, payload = self.workers[self.owner[s]].recv()
-                if status != "ok":
-                    raise RuntimeError(f"material fit worker: {payload}")
-                results[s] = payload
+                results[s] = self._reply(s)
         loss = sum(results[s][0] for s in parts)
         grads = [sum(results[s][1][k] for s in parts) for k in range(len(values))]
         return float(loss), grads
+
+    def residual(self, values: list[np.ndarray], spp: int, seed: int) -> np.ndarray:
+        """The weighted residuals of every film and shard at ``values`` (:meth:`ShardScene.residual`; shard s
+        uses ``seed + s``), concatenated in (film, shard) order: their squares sum to the films' summed loss."""
+        order = [(f, s) for f, parts in enumerate(self.films) for s in range(len(parts))]
+        for f, s in order:
+            if self.owner[s] is not None:
+                self.workers[self.owner[s]].send(("residual", self.flat_index[f, s], (values, spp, seed + s)))
+        results = {(f, s): self.scene.residual(self.local_index[f, s], values, spp, seed + s)
+                   for f, s in order if self.owner[s] is None}
+        for f, s in order:
+            if self.owner[s] is not None:
+                results[f, s] = self._reply(s)
+        return np.concatenate([results[key] for key in order])
+
+    def _reply(self, shard: int) -> Any:
+        """The next answer of the worker that owns ``shard``; a worker's error is raised here."""
+        status, payload = self.workers[self.owner[shard]].recv()
+        if status != "ok":
+            raise RuntimeError(f"material fit worker: {payload}")
+        return payload
 
     def close(self) -> None:
         for worker in self.workers:

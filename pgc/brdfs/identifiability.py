@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from pgc.brdfs.maths import eval_pgc_sheen, tangent_frame
+from pgc.least_squares import levenberg_marquardt
 from pgc.sampling import envmap_directions, fibonacci_sphere
 
 PARAMETER_NAMES = ("base_r", "base_g", "base_b", "light_r", "light_g", "light_b", "roughness",
@@ -209,33 +210,26 @@ def recover(scene: StudyScene, frames: list[Frame], truth: np.ndarray, start: np
 
     cols = np.array([PARAMETER_NAMES.index(n) for n in FIT_PARAMETERS])
     bounded = np.array([n != "light" and not n.startswith("light_") for n in FIT_PARAMETERS])
+    lowest = np.where(np.array(FIT_PARAMETERS) == "sheen_roughness", math.log(0.01), -np.inf)
     rng = np.random.default_rng(seed)
     target = render(scene, frames, torch.as_tensor(truth)).numpy()
     target = target + rng.normal(0.0, noise, target.shape)
     theta = np.asarray(start, np.float64).copy()
     theta[:3] = truth[:3]
-    damping = 1e-3
 
-    def residual(t: np.ndarray) -> np.ndarray:
-        return render(scene, frames, torch.as_tensor(t)).numpy() - target
+    def parameters(log_p: np.ndarray) -> np.ndarray:
+        t = theta.copy()
+        t[cols] = np.exp(log_p)
+        return t
 
-    r = residual(theta)
-    for _ in range(iterations):
-        J = jacobian(scene, frames, theta)[:, cols] * theta[cols][None]  # d pixels / d log p
-        JtJ, Jtr = J.T @ J, J.T @ r
-        while True:
-            step = -np.linalg.solve(JtJ + damping * np.diag(np.diag(JtJ) + 1e-12), Jtr)
-            log_p = np.log(theta[cols]) + step
-            log_p[bounded] = np.minimum(log_p[bounded], 0.0)
-            trial = theta.copy()
-            trial[cols] = np.exp(log_p)
-            trial[PARAMETER_NAMES.index("sheen_roughness")] = max(trial[PARAMETER_NAMES.index("sheen_roughness")],
-                                                                  0.01)
-            r_trial = residual(trial)
-            if r_trial @ r_trial < r @ r:
-                theta, r, damping = trial, r_trial, max(damping / 3.0, 1e-9)
-                break
-            damping *= 4.0
-            if damping > 1e8:
-                return theta
-    return theta
+    def residual(log_p: np.ndarray) -> np.ndarray:
+        return render(scene, frames, torch.as_tensor(parameters(log_p))).numpy() - target
+
+    def log_jacobian(log_p: np.ndarray, r: np.ndarray) -> np.ndarray:
+        t = parameters(log_p)
+        return jacobian(scene, frames, t)[:, cols] * t[cols][None]  # d pixels / d log p
+
+    def project(log_p: np.ndarray) -> np.ndarray:
+        return np.maximum(np.where(bounded, np.minimum(log_p, 0.0), log_p), lowest)
+
+    return parameters(levenberg_marquardt(residual, log_jacobian, np.log(theta[cols]), project, iterations).x)

@@ -84,6 +84,24 @@ class MaterialFitSettings(Options):
     final_lr_factor: float = Field(0.1, gt=0.0, le=1.0)
     """Once stopping is decided, ``patience`` more steps run at this fraction of ``lr``; the result is the mean
     of their iterates (smaller noise-driven jitter; at a bound the jitter is one-sided and biases a mean)."""
+    polish: bool = True
+    """After Adam, a Levenberg-Marquardt polish of the same variables (parameters scaled to [0, 1] by their
+    bounds, log radiance) on the weighted residuals of every film, rendered twice at ``polish_spp`` with two
+    fixed seeds (a deterministic problem; its cost, the product of the two residuals, has no render variance in
+    its expectation), the Jacobians by forward differences. Adam's 4-spp steps stop on the slope of the
+    loss's flat valleys (roughness against sheen colour); the polish walks further along them. Cost per
+    iteration: 2 x (variables + 1) renders of every film at ``polish_spp`` (pgc-sheen: 18), plus 2 per
+    rejected trial: 70-170 s on the 12-view 48 px in-family controls, 1.7-4.5x Adam's seconds. On the five
+    controls (seed 0, uniform light) it took the roughness from 15-72 % off to 3-21 % and the sheen colour from
+    33-69 % to 2-45 % (on the knit, what remains is its weave's mismatch; docs/pbr.md, "The polish")."""
+    polish_spp: int = count(64, 1, MAX_SPP)
+    """Samples per pixel of the polish's renders (low-discrepancy sampler). Their noise, not the optimiser,
+    bounds where the polish ends along a weakly determined direction."""
+    polish_iterations: int = count(10, 1, 1000)
+    """Most Jacobians of the polish."""
+    polish_tolerance: float = Field(1e-3, gt=0.0)
+    """The polish has converged when an accepted step moves no variable more than this (0.1 % of a
+    parameter's range, 0.1 % relative in the radiance)."""
     max_image_side: int = count(96, 8, 16384)
     """Images are area-downsampled so their longer side is at most this (fit cost ~ pixels)."""
     holdout_every: int = count(4, 2, 10_000)
