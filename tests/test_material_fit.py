@@ -45,7 +45,7 @@ def test_fit_recovers_sheen_parameters_and_light(renderer) -> None:
     capture = synthetic_capture(Material("pgc-sheen", truth, texture), n_views=6, size=32)
     init = Material("pgc-sheen", {}, texture)
     fit = renderer.fit(capture, folded_sheet(n=16), init,
-                       FAST.model_copy(update={"max_image_side": 32, "polish": False}))  # Adam alone
+                       FAST.model_copy(update={"max_image_side": 32, "polish": False}))  # Adam alone (the default)
     p, f = fit.material.params, fit.figures
     assert f["stopped"] == "plateau" and f["iterations"] < FAST.max_iterations
     np.testing.assert_allclose(fit.light.radiance, LIGHT, rtol=0.04)
@@ -79,7 +79,7 @@ def test_polish_converges_and_lowers_its_cost(renderer) -> None:
     texture = checker_texture(32)
     capture = synthetic_capture(Material("pgc-sheen", truth, texture), n_views=6, size=32)
     fit = renderer.fit(capture, folded_sheet(n=16), Material("pgc-sheen", {}, texture),
-                       FAST.model_copy(update={"max_image_side": 32}))
+                       FAST.model_copy(update={"max_image_side": 32, "polish": True}))
     polish, p = fit.figures["polish"], fit.material.params
     assert polish["stopped"] == "converged" and polish["loss_after"] < polish["loss_before"], polish
     assert 0.0 <= p["roughness"] <= 1.0 and 0.01 <= p["sheen_roughness"] <= 1.0

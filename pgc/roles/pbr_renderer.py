@@ -84,7 +84,7 @@ class MaterialFitSettings(Options):
     final_lr_factor: float = Field(0.1, gt=0.0, le=1.0)
     """Once stopping is decided, ``patience`` more steps run at this fraction of ``lr``; the result is the mean
     of their iterates (smaller noise-driven jitter; at a bound the jitter is one-sided and biases a mean)."""
-    polish: bool = True
+    polish: bool = False
     """After Adam, a Levenberg-Marquardt polish of the same variables (parameters scaled to [0, 1] by their
     bounds, log radiance) on the weighted residuals of every film, rendered twice at ``polish_spp`` with two
     fixed seeds (a deterministic problem; its cost, the product of the two residuals, has no render variance in
@@ -93,7 +93,9 @@ class MaterialFitSettings(Options):
     iteration: 2 x (variables + 1) renders of every film at ``polish_spp`` (pgc-sheen: 18), plus 2 per
     rejected trial: 70-170 s on the 12-view 48 px in-family controls, 1.7-4.5x Adam's seconds. On the five
     controls (seed 0, uniform light) it took the roughness from 15-72 % off to 3-21 % and the sheen colour from
-    33-69 % to 2-45 % (on the knit, what remains is its weave's mismatch; docs/pbr.md, "The polish")."""
+    33-69 % to 2-45 % (on the knit, what remains is its weave's mismatch; docs/pbr.md, "The polish"). Off by
+    default: its cost grows with every film's pixels, about 40x the controls' on the default demo's 128 views of
+    96 px (an hour or more), where Adam takes under a minute."""
     polish_spp: int = count(64, 1, MAX_SPP)
     """Samples per pixel of the polish's renders (low-discrepancy sampler). Their noise, not the optimiser,
     bounds where the polish ends along a weakly determined direction."""
