@@ -54,8 +54,8 @@ START_VALUES = 5
 """Values of :data:`START_PARAMETER` the start search evaluates, evenly over its range (ends excluded)."""
 START_ALTERNATIVES = ("gender", (0.1, 0.5, 0.9))
 """A shape parameter and its start values, when the body model has it (:func:`_alternative_start`): the searched
-start at each value, as tall, placed alike; the one whose vertices lie best inside the masks starts the fit. Anny's
-gender: the descent barely moves it from its start."""
+start at each value, as tall, placed alike; the value whose body lies best inside the masks starts the fit, with the
+height searched again at it. Anny's gender: the descent barely moves it from its start."""
 BAND_SIGMAS = 6.0
 """Pixels within this many sigmas (at least BAND_MIN_PX) of the body's edge carry the silhouette loss."""
 BAND_MIN_PX = 2.0
@@ -426,7 +426,6 @@ class _Views:
                 total = total + f2 * KEYPOINT_WEIGHT * (conf * err).sum() / conf.sum().clamp_min(1e-6)
         return total / len(self.views), float(np.mean(iou))
 
-
     def inside(self, verts: "torch.Tensor") -> "torch.Tensor":
         """The vertices-inside term alone (mean over the views, full-resolution pixels)."""
         total = verts.sum() * 0.0
@@ -575,9 +574,12 @@ def _fit(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_n
     low = torch.tensor([params[k].low for k in params], dtype=dtype)
     high = torch.tensor([params[k].high for k in params], dtype=dtype)
     first = coarse if PHASES[0][2] else fine
-    searched_shape, start_shift, searched = _start_search(body, {k: params[k].default for k in params}, first,
-                                                          PHASES[0][1])
-    shape0, alternatives = _alternative_start(body, searched_shape, start_shift, first)
+    defaults = {k: params[k].default for k in params}
+    shape0, start_shift, searched = _start_search(body, defaults, first, PHASES[0][1])
+    chosen, alternatives = _alternative_start(body, shape0, start_shift, first)
+    if chosen != shape0:  # another gender: its own height search (the stature found at the default one is off)
+        name = START_ALTERNATIVES[0]
+        shape0, start_shift, searched = _start_search(body, {**defaults, name: chosen[name]}, first, PHASES[0][1])
     frac = ((torch.tensor([shape0[k] for k in params], dtype=dtype) - low) / (high - low)).clamp(0.02, 0.98)
     shape_logit = torch.log(frac / (1 - frac)).clone().requires_grad_(True)
     angles = torch.zeros(len(names), 3, dtype=dtype, requires_grad=True)
