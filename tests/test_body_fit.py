@@ -351,8 +351,8 @@ def test_alternative_starts_keep_the_stature_of_the_searched_start():
 @needs_anny
 @pytest.mark.parametrize("gender", [0.1, 0.9])
 def test_alternative_start_picks_the_gender_whose_body_stays_inside_the_masks(default_scene_renderer, gender):
-    """A body at rest in a tight shirt, of a gender that the choice offers: from the default gender's start as tall,
-    the choice picks the true gender (the other bodies leave the person's mask)."""
+    """A body at rest in a tight shirt, of a gender the choice offers: from the default gender's start as tall, the
+    choice picks the true gender (the other bodies leave the person's mask)."""
     from pgc.body.fit import _alternative_start, _alternative_starts, _Silhouette, _view_data, _Views
     from pgc.testing.body_scenes import anny_capture
 
@@ -360,11 +360,12 @@ def test_alternative_start_picks_the_gender_whose_body_stays_inside_the_masks(de
     defaults = {k: p.default for k, p in body.parameters.items()}
     shift = np.array([0.04, 0.0, -0.03])
     truth = next(s for s in _alternative_starts(body, defaults) if s["gender"] == gender)
-    capture, _, _ = anny_capture(body, default_scene_renderer, truth, None, shift, "tight", views=6, size=96)
+    capture, _, _ = anny_capture(body, default_scene_renderer, truth, None, shift, "tight", views=6, size=192)
     views = _Views([_view_data(v, None) for v in capture.views], _Silhouette(np.asarray(body.faces)), {})
     chosen, tried = _alternative_start(body, defaults, shift, views)
     assert [g for g, _ in tried] == [0.1, 0.5, 0.9]
     assert chosen == pytest.approx(truth), tried
+    assert min(score for _, score in tried) < 0.5 * sorted(score for _, score in tried)[1], tried
 
 
 @pytest.mark.slow
