@@ -59,7 +59,7 @@ def run_fit(capture, body, truth, cloth, keypoints, settings) -> dict[str, Any]:
     err = vertex_error(fit.mesh.vertices, truth, cloth)
     return {"seconds": wall, "cpu_seconds": cpu, "steps": fit.figures["iterations"],
             "silhouette_iou": fit.figures["silhouette_iou"], "shape": fit.shape,
-            "start_search": fit.figures["start_search"],
+            "start_search": fit.figures["start_search"], "start_alternatives": fit.figures["start_alternatives"],
             "errors": {"mean_m": err["mean"], "max_m": err["max"], "under_garment_mean_m": err["under_garment"]["mean"],
                        "under_garment_max_m": err["under_garment"]["max"], "exposed_mean_m": err["exposed"]["mean"]}}
 

@@ -328,6 +328,46 @@ def test_start_search_finds_the_height_of_a_body_in_the_rest_pose(default_scene_
     assert np.allclose(translation, shift, atol=0.03)
 
 
+@needs_anny
+def test_alternative_starts_keep_the_stature_of_the_searched_start():
+    """Each gender start gets the height that keeps the body as tall as the height search's start (a male body is
+    taller at the same height parameter); the searched start's own gender keeps its shape."""
+    from pgc.body.fit import START_ALTERNATIVES, _alternative_starts, _stature
+
+    body = REGISTRY.create("body_model", "anny")
+    shape = {**{k: p.default for k, p in body.parameters.items()}, "height": 0.4}
+    starts = _alternative_starts(body, shape)
+    name, values = START_ALTERNATIVES
+    assert [s[name] for s in starts] == list(values) and shape in starts
+    tall = _stature(body, shape)
+    for s in starts:
+        assert abs(_stature(body, s) - tall) < 0.002, s
+        assert {k: v for k, v in s.items() if k not in (name, "height")} == \
+            {k: v for k, v in shape.items() if k not in (name, "height")}
+    male, female = starts[0], starts[-1]
+    assert male["height"] < shape["height"] < female["height"]
+
+
+@needs_anny
+@pytest.mark.parametrize("gender", [0.1, 0.9])
+def test_alternative_start_picks_the_gender_whose_body_stays_inside_the_masks(default_scene_renderer, gender):
+    """A body at rest in a tight shirt, of a gender the choice offers: from the default gender's start as tall, the
+    choice picks the true gender (the other bodies leave the person's mask)."""
+    from pgc.body.fit import _alternative_start, _alternative_starts, _Silhouette, _view_data, _Views
+    from pgc.testing.body_scenes import anny_capture
+
+    body = REGISTRY.create("body_model", "anny")
+    defaults = {k: p.default for k, p in body.parameters.items()}
+    shift = np.array([0.04, 0.0, -0.03])
+    truth = next(s for s in _alternative_starts(body, defaults) if s["gender"] == gender)
+    capture, _, _ = anny_capture(body, default_scene_renderer, truth, None, shift, "tight", views=6, size=192)
+    views = _Views([_view_data(v, None) for v in capture.views], _Silhouette(np.asarray(body.faces)), {})
+    chosen, tried = _alternative_start(body, defaults, shift, views)
+    assert [g for g, _ in tried] == [0.1, 0.5, 0.9]
+    assert chosen == pytest.approx(truth), tried
+    assert min(score for _, score in tried) < 0.5 * sorted(score for _, score in tried)[1], tried
+
+
 @pytest.mark.slow
 @needs_anny
 @pytest.mark.parametrize("garment", ["tight", "loose"])

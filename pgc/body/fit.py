@@ -14,12 +14,12 @@ Per view (every length in pixels of that view):
 - a prior on the squared joint angles keeps what no view constrains at rest.
 Three phases narrow ``sigma`` (:data:`PHASES`; the silhouette term is scaled by ``sigma`` so its gradient keeps its
 size) and the band of pixels around the edge; the first two run on images downsampled to about :data:`COARSE_PX`
-pixels. The start shape's height comes from a search over the height parameter (:func:`_start_search`); the start
-translation brings the body's visible silhouette onto the masks (:func:`_placed_translation`); the views used are
-chosen far apart (:func:`spread_views`); every joint that moves enough skin is posed (those that with their
-descendants skin less than :data:`MIN_SUBTREE_SKIN` of the vertices, hands' fingers and feet, stay at rest); a phase
-stops once its loss stalls (:data:`STALL_SHARE`), the last also when it no longer falls (``tolerance``). Docs:
-docs/body.md, "Body fit".
+pixels. The start shape's height comes from a search over the height parameter (:func:`_start_search`), its gender
+from a choice among a few as tall (:func:`_alternative_start`); the start translation brings the body's visible
+silhouette onto the masks (:func:`_placed_translation`); the views used are chosen far apart (:func:`spread_views`);
+every joint that moves enough skin is posed (those that with their descendants skin less than
+:data:`MIN_SUBTREE_SKIN` of the vertices, hands' fingers and feet, stay at rest); a phase stops once its loss stalls
+(:data:`STALL_SHARE`), the last also when it no longer falls (``tolerance``). Docs: docs/body.md, "Body fit".
 """
 
 from __future__ import annotations
@@ -52,6 +52,10 @@ START_PARAMETER = "height"
 """The shape parameter searched for the start (:func:`_start_search`), when the body model has it."""
 START_VALUES = 5
 """Values of :data:`START_PARAMETER` the start search evaluates, evenly over its range (ends excluded)."""
+START_ALTERNATIVES = ("gender", (0.1, 0.5, 0.9))
+"""A shape parameter and its start values, when the body model has it (:func:`_alternative_start`): the searched
+start at each value, as tall, placed alike; the value whose body lies best inside the masks starts the fit, with the
+height searched again at it. Anny's gender: the descent barely moves it from its start."""
 BAND_SIGMAS = 6.0
 """Pixels within this many sigmas (at least BAND_MIN_PX) of the body's edge carry the silhouette loss."""
 BAND_MIN_PX = 2.0
@@ -411,8 +415,8 @@ class _Views:
             uv = (pc @ K.T)[:, :2] / pc[:, 2:3].clamp_min(1e-3)
             sil, reach, j = self.silhouette.loss(v, uv, pc[:, 2], sigma)
             iou.append(j)
-            inside = (_sample_outside(v.outside, uv) ** 2).mean()
-            total = total + sigma * v.scale * sil + f2 * (INSIDE_WEIGHT * inside + REACH_WEIGHT * reach)
+            inside = INSIDE_WEIGHT * (_sample_outside(v.outside, uv) ** 2).mean()
+            total = total + sigma * v.scale * sil + f2 * (inside + REACH_WEIGHT * reach)
             if v.keypoints is not None:
                 idx = torch.as_tensor([self.kp_index[n] for n in v.keypoints.names])
                 jc = joints[idx] @ R.T + t
@@ -421,6 +425,15 @@ class _Views:
                 err = ((juv - torch.as_tensor(v.keypoints.xy / v.scale, dtype=verts.dtype)) ** 2).sum(-1)
                 total = total + f2 * KEYPOINT_WEIGHT * (conf * err).sum() / conf.sum().clamp_min(1e-6)
         return total / len(self.views), float(np.mean(iou))
+
+    def inside(self, verts: "torch.Tensor") -> "torch.Tensor":
+        """The vertices-inside term alone (mean over the views, full-resolution pixels)."""
+        total = verts.sum() * 0.0
+        for v, (K, R, t) in zip(self.views, self.cams):
+            pc = verts @ R.T + t
+            uv = (pc @ K.T)[:, :2] / pc[:, 2:3].clamp_min(1e-3)
+            total = total + v.scale * v.scale * INSIDE_WEIGHT * (_sample_outside(v.outside, uv) ** 2).mean()
+        return total / len(self.views)
 
 
 def _start_search(body: BodyModel, shape: dict[str, float], views: _Views, sigma: float
@@ -465,6 +478,60 @@ def _start_search(body: BodyModel, shape: dict[str, float], views: _Views, sigma
     return trial, shift, [(float(x), y) for x, y in zip(values, losses)]
 
 
+def _stature(body: BodyModel, shape: dict[str, float]) -> float:
+    """The vertical extent (metres) of ``body`` of ``shape`` at rest."""
+    import torch
+
+    rest = torch.eye(3, dtype=torch.float32).expand(1, len(body.joint_names), 3, 3)
+    with torch.no_grad():
+        out = body.forward_torch({k: torch.tensor([x], dtype=torch.float32) for k, x in shape.items()}, rest,
+                                 torch.zeros(1, 3, dtype=torch.float32))
+    y = out.vertices[0, :, 1]
+    return float(y.max() - y.min())
+
+
+def _alternative_starts(body: BodyModel, shape: dict[str, float]) -> list[dict[str, float]]:
+    """``shape`` with :data:`START_ALTERNATIVES`' parameter at each of its values and :data:`START_PARAMETER` set so
+    the body at rest is as tall as at ``shape`` (linear between the parameter's ends; ``shape`` itself where the
+    value is its own); [``shape``] when the body model lacks either parameter."""
+    name, values = START_ALTERNATIVES
+    if name not in shape or START_PARAMETER not in shape:
+        return [shape]
+    spec = body.parameters[START_PARAMETER]
+    target = _stature(body, shape)
+    starts = []
+    for value in values:
+        if value == shape[name]:
+            starts.append(dict(shape))
+            continue
+        low, high = (_stature(body, {**shape, name: value, START_PARAMETER: x}) for x in (spec.low, spec.high))
+        x = spec.low + (spec.high - spec.low) * (target - low) / (high - low)
+        starts.append({**shape, name: value, START_PARAMETER: float(np.clip(x, spec.low, spec.high))})
+    return starts
+
+
+def _alternative_start(body: BodyModel, shape: dict[str, float], translation: np.ndarray, views: "_Views"
+                       ) -> tuple[dict[str, float], list[tuple[float, float]]]:
+    """Of :func:`_alternative_starts` of ``shape``, at rest moved by ``translation``, the one with the lowest
+    vertices-inside term on ``views`` (a garment may hide body but the body may not leave the person's mask; the
+    silhouette and reach terms, read at rest before the pose is fitted, favoured one gender under a loose dress);
+    returns it and the (value, term) pairs."""
+    import torch
+
+    starts = _alternative_starts(body, shape)
+    if len(starts) == 1:
+        return shape, []
+    rest = torch.eye(3, dtype=torch.float32).expand(1, len(body.joint_names), 3, 3)
+    move = torch.as_tensor(translation, dtype=torch.float32)[None]
+    scores = []
+    for trial in starts:
+        with torch.no_grad():
+            out = body.forward_torch({k: torch.tensor([x], dtype=torch.float32) for k, x in trial.items()}, rest, move)
+            scores.append(float(views.inside(out.vertices[0])))
+    name = START_ALTERNATIVES[0]
+    return starts[int(np.argmin(scores))], [(s[name], score) for s, score in zip(starts, scores)]
+
+
 def fit_body(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_name: str,
              keypoints: Mapping[str, Keypoints] | None = None, reporter: Reporter | None = None,
              where: str = "capture") -> BodyFit:
@@ -507,7 +574,12 @@ def _fit(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_n
     low = torch.tensor([params[k].low for k in params], dtype=dtype)
     high = torch.tensor([params[k].high for k in params], dtype=dtype)
     first = coarse if PHASES[0][2] else fine
-    shape0, start_shift, searched = _start_search(body, {k: params[k].default for k in params}, first, PHASES[0][1])
+    defaults = {k: params[k].default for k in params}
+    shape0, start_shift, searched = _start_search(body, defaults, first, PHASES[0][1])
+    chosen, alternatives = _alternative_start(body, shape0, start_shift, first)
+    if chosen != shape0:  # another gender: its own height search (the stature found at the default one is off)
+        name = START_ALTERNATIVES[0]
+        shape0, start_shift, searched = _start_search(body, {**defaults, name: chosen[name]}, first, PHASES[0][1])
     frac = ((torch.tensor([shape0[k] for k in params], dtype=dtype) - low) / (high - low)).clamp(0.02, 0.98)
     shape_logit = torch.log(frac / (1 - frac)).clone().requires_grad_(True)
     angles = torch.zeros(len(names), 3, dtype=dtype, requires_grad=True)
@@ -559,6 +631,8 @@ def _fit(capture: Capture, body: BodyModel, settings: "BodyFitSettings", model_n
                "keypoints": use_kp, "loss": history[-1], "silhouette_iou": iou,
                "start_search": {"parameter": START_PARAMETER, "start": shape0[START_PARAMETER],
                                 "tried": [list(pair) for pair in searched]} if searched else None,
+               "start_alternatives": {"parameter": START_ALTERNATIVES[0], "start": shape0[START_ALTERNATIVES[0]],
+                                      "tried": [list(pair) for pair in alternatives]} if alternatives else None,
                "seconds": round(time.perf_counter() - start, 3)}
     return BodyFit(model_name, dict(body.options.model_dump()), shape, tuple(names), rotations, translation, mesh,
                    figures)
