@@ -1,15 +1,16 @@
 """The JAX arrays of the splat fit: :class:`JaxFitBackend` for the loop of :mod:`pgc.splats.fit`.
 
 XLA specifics: one jitted training step serves every SH degree (higher coefficients are masked, not sliced),
-every view of one image size and every loss weight and Adam epsilon (traced values, not compile-time constants:
-settings that differ in them share one compilation); chunk tables are padded to a capacity that only grows
-(by >= 25 %), reserved for every view before the first step, so a whole fit compiles a handful of times. The Adam update is the shared
-:func:`pgc.splats.fit.adam_update`, traced into the step.
+every view whose size rounds up to the same multiple of the tile (views are zero-padded to it; the loss counts
+their own pixels only) and every loss weight and Adam epsilon (traced values, not compile-time constants: settings
+that differ in them share one compilation); chunk tables are padded to a capacity that only grows (by >= 25 %),
+reserved for every view before the first step, so a whole fit compiles a handful of times. The Adam update is the
+shared :func:`pgc.splats.fit.adam_update`, traced into the step.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 from typing import Any, Sequence
 
@@ -18,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from pgc.io.images import linear_to_srgb
-from pgc.metrics.ssim import mean_ssim
+from pgc.metrics.ssim import ssim_map
 from pgc.roles.splat_renderer import FitSplatsSettings
 from pgc.splats.binding import apply_frames, triangle_frames
 from pgc.splats.fused import DEFAULT_TILE
@@ -34,12 +35,14 @@ from pgc_jax.splat.render import CameraArrays, camera_arrays, make_bins, render_
 class _Arrays:
     """A view's arrays."""
 
-    camera: Camera
+    camera: Camera           # the view's camera, its image size padded to a multiple of the tile
+    size: tuple[int, int]    # the view's own (H, W)
     cam: CameraArrays | jnp.ndarray  # the XLA compositor's arrays, or the fused kernel's camera bits
-    target: jnp.ndarray      # (H, W, 3) sRGB
+    target: jnp.ndarray      # (H, W, 3) sRGB, zero outside the view
     background: jnp.ndarray  # (H, W, 3) linear
     mask: jnp.ndarray        # (H, W) (zeros when the view has none)
     band: jnp.ndarray        # (H, W) mask-loss weights (zeros without a mask)
+    inside: jnp.ndarray      # (H, W) 1 on the view's own pixels, 0 on the padding
 
 
 def _sh_mask(degree: int, dtype) -> jnp.ndarray:
@@ -75,8 +78,10 @@ def _world(params, frames, parent, keep):
 
 
 @partial(jax.jit, static_argnames=("width", "height", "tile", "near", "threads"))
-def _contributions(params, frames, parent, sh_mask, cam, background, bins, *, width, height, tile, near, threads):
-    """(N,) each Gaussian's summed compositing weight over the pixels of one view (d colour_r / d offset_r)."""
+def _contributions(params, frames, parent, sh_mask, cam, background, inside, bins, *, width, height, tile, near,
+                   threads):
+    """(N,) each Gaussian's summed compositing weight over the ``inside`` pixels of one view
+    (d colour_r / d offset_r)."""
     n = params["means"].shape[0]
     zero = jnp.zeros((n, 3), background.dtype)
     if bins is None:  # the fused kernel: colour = C0 probe + 0.5 from a DC-only SH, as the torch fit does
@@ -86,14 +91,15 @@ def _contributions(params, frames, parent, sh_mask, cam, background, bins, *, wi
         def red(probe):
             color, _, _ = fused_render(means, rot, scales, opac, probe[:, None, :], cam, background, height=height,
                                        width=width, count=1, tile=DEFAULT_TILE, threads=threads)
-            return color[..., 0].sum()
+            return (inside * color[..., 0]).sum()
 
         return jax.grad(red)(zero)[:, 0] / SH_C0
     ones = jnp.ones((n,), background.dtype)
 
     def red(probe):
-        return _render(params, frames, parent, ones, sh_mask, cam, background, bins, probe, width=width,
-                       height=height, tile=tile, near=near, threads=threads)[0][..., 0].sum()
+        color = _render(params, frames, parent, ones, sh_mask, cam, background, bins, probe, width=width,
+                        height=height, tile=tile, near=near, threads=threads)[0][..., 0]
+        return (inside * color).sum()
 
     return jax.grad(red)(zero)[:, 0]
 
@@ -107,30 +113,34 @@ def _weights(s: FitSplatsSettings, dtype) -> dict[str, jnp.ndarray]:
 
 
 @partial(jax.jit, static_argnames=("width", "height", "tile", "near", "threads"))
-def _train_step(params, adam, t, lrs, frames, parent, sh_mask, cam, background, target, mask, band, bins, weights, *,
-                width, height, tile, near, threads):
+def _train_step(params, adam, t, lrs, frames, parent, sh_mask, cam, background, target, mask, band, inside, bins,
+                weights, *, width, height, tile, near, threads):
     """One Adam step (number ``t`` >= 1) on one view with the :func:`_weights` ``weights``; returns new params, Adam
-    state, loss and the sRGB MSE. A zero weight adds an exact zero to the loss and its gradients."""
+    state, loss and the sRGB MSE. A zero weight adds an exact zero to the loss and its gradients. Means are over
+    the ``inside`` pixels; the SSIM's zero padding at the view's border is the zeroed padding of the image."""
     n = params["means"].shape[0]
     ones = jnp.ones((n,), target.dtype)
     probe = None if bins is None else jnp.zeros((n, 3), target.dtype)
     w = weights
+    pixels = inside.sum()
 
     def loss_fn(p):
         color, alpha = _render(p, frames, parent, ones, sh_mask, cam, background, bins, probe, width=width,
                                height=height, tile=tile, near=near, threads=threads)
-        pred = linear_to_srgb(color)
-        loss = w["l1"] * jnp.mean(jnp.abs(pred - target)) + w["ssim"] * (1.0 - mean_ssim(pred, target))
+        pred = jnp.where(inside[..., None] > 0, linear_to_srgb(color), 0.0)
+        ssim = ssim_map(pred, target, "zeros")
+        loss = (w["l1"] * jnp.abs(pred - target).sum() / (3 * pixels)
+                + w["ssim"] * (1.0 - (inside[..., None] * ssim).sum() / (3 * pixels)))
         surface = w["surface"] * jnp.mean(p["means"][:, 1] ** 2)
         fade = w["opacity"] * jnp.mean(jax.nn.sigmoid(p["opacity_logits"]))
-        return loss + w["mask"] * jnp.mean(band * jnp.abs(mask - alpha)) + surface + fade, pred
+        return loss + w["mask"] * (band * jnp.abs(mask - alpha)).sum() / pixels + surface + fade, pred
 
     (loss, pred), grads = jax.value_and_grad(loss_fn, has_aux=True)(params)
     new_p, new_m, new_v = {}, {}, {}
     for name in params:
         new_p[name], new_m[name], new_v[name] = adam_update(params[name], grads[name], adam["m"][name],
                                                             adam["v"][name], t, lrs[name], w["adam_eps"])
-    return new_p, {"m": new_m, "v": new_v}, loss, jnp.mean((pred - target) ** 2)
+    return new_p, {"m": new_m, "v": new_v}, loss, ((pred - target) ** 2).sum() / (3 * pixels)
 
 
 class JaxFitBackend(FitBackend):
@@ -154,14 +164,22 @@ class JaxFitBackend(FitBackend):
                      "v": {n: jnp.zeros_like(t) for n, t in self.params.items()}}
 
     def prepare(self, view: FitView) -> _Arrays:
+        """The view's arrays, zero-padded to the next multiple of the compositor's tile: the tile grid is the
+        view's own, and views of nearby sizes share one compilation."""
         h, w = view.camera.height, view.camera.width
-        zeros = np.zeros((h, w), np.float32)
-        mask = zeros if view.mask is None else view.mask
-        band = zeros if view.band is None else view.band
-        cam = jnp.asarray(camera_bits(view.camera, self.near)) if self.fused else camera_arrays(view.camera, self.dtype)
-        return _Arrays(view.camera, cam, jnp.asarray(view.target, self.dtype),
-                       jnp.asarray(view.background, self.dtype), jnp.asarray(mask, self.dtype),
-                       jnp.asarray(band, self.dtype))
+        tile = DEFAULT_TILE if self.fused else self.tile
+        size = (-(-h // tile) * tile, -(-w // tile) * tile)
+        camera = replace(view.camera, height=size[0], width=size[1])
+
+        def padded(x: np.ndarray | None) -> jnp.ndarray:
+            x = np.zeros((h, w), np.float32) if x is None else np.asarray(x)
+            out = np.zeros(size + x.shape[2:], x.dtype)
+            out[:h, :w] = x
+            return jnp.asarray(out, self.dtype)
+
+        cam = jnp.asarray(camera_bits(camera, self.near)) if self.fused else camera_arrays(camera, self.dtype)
+        return _Arrays(camera, (h, w), cam, padded(view.target), padded(view.background), padded(view.mask),
+                       padded(view.band), padded(np.ones((h, w), np.float32)))
 
     def _keep(self, keep: np.ndarray | None) -> jnp.ndarray:
         return jnp.ones(len(self.parent), self.dtype) if keep is None else jnp.asarray(keep, self.dtype)
@@ -202,7 +220,7 @@ class JaxFitBackend(FitBackend):
              s: FitSplatsSettings) -> tuple[jax.Array, jax.Array]:
         self.params, self.adam, loss, mse = _train_step(
             self.params, self.adam, float(t), lrs, self.frames, self.parent, _sh_mask(degree, self.dtype),
-            handle.cam, handle.background, handle.target, handle.mask, handle.band, self._bins(handle),
+            handle.cam, handle.background, handle.target, handle.mask, handle.band, handle.inside, self._bins(handle),
             _weights(s, self.dtype), **self._kw(handle))
         return loss, mse
 
@@ -212,13 +230,14 @@ class JaxFitBackend(FitBackend):
         probe = None if bins is None else jnp.zeros((len(self.parent), 3), self.dtype)
         color, _ = _render(self.params, self.frames, self.parent, k, _sh_mask(degree, self.dtype), handle.cam,
                            handle.background, bins, probe, **self._kw(handle))
-        return np.asarray(color)
+        h, w = handle.size
+        return np.asarray(color)[:h, :w]
 
     def contributions(self, handles: Sequence[_Arrays], degree: int) -> np.ndarray:
         total = np.zeros(len(self.parent))
         for h in handles:
             total += np.asarray(_contributions(self.params, self.frames, self.parent, _sh_mask(degree, self.dtype),
-                                               h.cam, h.background, self._bins(h), **self._kw(h)))
+                                               h.cam, h.background, h.inside, self._bins(h), **self._kw(h)))
         return total
 
     def state(self) -> dict[str, np.ndarray]:
