@@ -74,11 +74,11 @@ def _cost(r: np.ndarray) -> float:
 
 def _normal_matrix(Ja: np.ndarray, Jb: np.ndarray) -> np.ndarray:
     """``J^T J`` for one Jacobian; for two independent estimates, their symmetrised cross product made
-    positive definite (see :func:`levenberg_marquardt`)."""
+    positive definite, also when noise leaves no positive eigenvalue (see :func:`levenberg_marquardt`)."""
     if Ja is Jb:
         return _dot(Ja, Ja)
     w, v = np.linalg.eigh((_dot(Ja, Jb) + _dot(Jb, Ja)) / 2.0)
-    return (v * np.maximum(w, 1e-9 * w.max())) @ v.T
+    return (v * np.maximum(w, 1e-9 * max(float(w.max()), np.finfo(float).tiny))) @ v.T
 
 
 def _dot(A: np.ndarray, B: np.ndarray) -> np.ndarray:

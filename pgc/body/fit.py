@@ -411,16 +411,13 @@ class _Views:
         iou = []
         for v, (K, R, t) in zip(self.views, self.cams):
             f2 = float(v.scale * v.scale)
-            pc = verts @ R.T + t
-            uv = (pc @ K.T)[:, :2] / pc[:, 2:3].clamp_min(1e-3)
-            sil, reach, j = self.silhouette.loss(v, uv, pc[:, 2], sigma)
+            uv, depth = _project(verts, K, R, t)
+            sil, reach, j = self.silhouette.loss(v, uv, depth, sigma)
             iou.append(j)
-            inside = INSIDE_WEIGHT * (_sample_outside(v.outside, uv) ** 2).mean()
-            total = total + sigma * v.scale * sil + f2 * (inside + REACH_WEIGHT * reach)
+            total = total + sigma * v.scale * sil + f2 * (_inside_term(v, uv) + REACH_WEIGHT * reach)
             if v.keypoints is not None:
                 idx = torch.as_tensor([self.kp_index[n] for n in v.keypoints.names])
-                jc = joints[idx] @ R.T + t
-                juv = (jc @ K.T)[:, :2] / jc[:, 2:3].clamp_min(1e-3)
+                juv, _ = _project(joints[idx], K, R, t)
                 conf = torch.as_tensor(v.keypoints.confidence, dtype=verts.dtype)
                 err = ((juv - torch.as_tensor(v.keypoints.xy / v.scale, dtype=verts.dtype)) ** 2).sum(-1)
                 total = total + f2 * KEYPOINT_WEIGHT * (conf * err).sum() / conf.sum().clamp_min(1e-6)
@@ -430,10 +427,31 @@ class _Views:
         """The vertices-inside term alone (mean over the views, full-resolution pixels)."""
         total = verts.sum() * 0.0
         for v, (K, R, t) in zip(self.views, self.cams):
-            pc = verts @ R.T + t
-            uv = (pc @ K.T)[:, :2] / pc[:, 2:3].clamp_min(1e-3)
-            total = total + v.scale * v.scale * INSIDE_WEIGHT * (_sample_outside(v.outside, uv) ** 2).mean()
+            total = total + v.scale * v.scale * _inside_term(v, _project(verts, K, R, t)[0])
         return total / len(self.views)
+
+
+def _project(points: "torch.Tensor", K: "torch.Tensor", R: "torch.Tensor", t: "torch.Tensor"
+             ) -> tuple["torch.Tensor", "torch.Tensor"]:
+    """Pixel coordinates (N, 2) and camera depth (N,) of world points (metres) in the camera (K, R, t)."""
+    pc = points @ R.T + t
+    return (pc @ K.T)[:, :2] / pc[:, 2:3].clamp_min(1e-3), pc[:, 2]
+
+
+def _inside_term(v: _ViewData, uv: "torch.Tensor") -> "torch.Tensor":
+    """The vertices-inside term of one view (its pixels): weighted mean squared distance outside the mask."""
+    return INSIDE_WEIGHT * (_sample_outside(v.outside, uv) ** 2).mean()
+
+
+def _rest_body(body: BodyModel, shape: dict[str, float], translation: np.ndarray | None = None) -> Any:
+    """``body`` of ``shape`` at the rest pose moved by ``translation`` (metres; default none), without gradients."""
+    import torch
+
+    rest = torch.eye(3, dtype=torch.float32).expand(1, len(body.joint_names), 3, 3)
+    move = torch.zeros(1, 3, dtype=torch.float32) if translation is None else torch.as_tensor(
+        translation, dtype=torch.float32)[None]
+    with torch.no_grad():
+        return body.forward_torch({k: torch.tensor([x], dtype=torch.float32) for k, x in shape.items()}, rest, move)
 
 
 def _start_search(body: BodyModel, shape: dict[str, float], views: _Views, sigma: float
@@ -445,13 +463,10 @@ def _start_search(body: BodyModel, shape: dict[str, float], views: _Views, sigma
     import torch
 
     faces = np.asarray(body.faces)
-    rest = torch.eye(3, dtype=torch.float32).expand(1, len(body.joint_names), 3, 3)
 
     def placed(value: float | None) -> tuple[dict[str, float], np.ndarray, "Any"]:
         trial = dict(shape) if value is None else {**shape, START_PARAMETER: value}
-        with torch.no_grad():
-            out = body.forward_torch({k: torch.tensor([x], dtype=torch.float32) for k, x in trial.items()}, rest,
-                                     torch.zeros(1, 3, dtype=torch.float32))
+        out = _rest_body(body, trial)
         shift = _placed_translation(views.views, out.vertices[0].double().numpy(), faces)
         return trial, shift, out
 
@@ -480,13 +495,7 @@ def _start_search(body: BodyModel, shape: dict[str, float], views: _Views, sigma
 
 def _stature(body: BodyModel, shape: dict[str, float]) -> float:
     """The vertical extent (metres) of ``body`` of ``shape`` at rest."""
-    import torch
-
-    rest = torch.eye(3, dtype=torch.float32).expand(1, len(body.joint_names), 3, 3)
-    with torch.no_grad():
-        out = body.forward_torch({k: torch.tensor([x], dtype=torch.float32) for k, x in shape.items()}, rest,
-                                 torch.zeros(1, 3, dtype=torch.float32))
-    y = out.vertices[0, :, 1]
+    y = _rest_body(body, shape).vertices[0, :, 1]
     return float(y.max() - y.min())
 
 
@@ -505,7 +514,8 @@ def _alternative_starts(body: BodyModel, shape: dict[str, float]) -> list[dict[s
             starts.append(dict(shape))
             continue
         low, high = (_stature(body, {**shape, name: value, START_PARAMETER: x}) for x in (spec.low, spec.high))
-        x = spec.low + (spec.high - spec.low) * (target - low) / (high - low)
+        x = spec.low + (spec.high - spec.low) * (target - low) / (high - low) if high != low else shape[
+            START_PARAMETER]
         starts.append({**shape, name: value, START_PARAMETER: float(np.clip(x, spec.low, spec.high))})
     return starts
 
@@ -521,13 +531,10 @@ def _alternative_start(body: BodyModel, shape: dict[str, float], translation: np
     starts = _alternative_starts(body, shape)
     if len(starts) == 1:
         return shape, []
-    rest = torch.eye(3, dtype=torch.float32).expand(1, len(body.joint_names), 3, 3)
-    move = torch.as_tensor(translation, dtype=torch.float32)[None]
     scores = []
     for trial in starts:
         with torch.no_grad():
-            out = body.forward_torch({k: torch.tensor([x], dtype=torch.float32) for k, x in trial.items()}, rest, move)
-            scores.append(float(views.inside(out.vertices[0])))
+            scores.append(float(views.inside(_rest_body(body, trial, translation).vertices[0])))
     name = START_ALTERNATIVES[0]
     return starts[int(np.argmin(scores))], [(s[name], score) for s, score in zip(starts, scores)]
 
