@@ -268,29 +268,57 @@ def _translation_init(views: list[_ViewData]) -> np.ndarray:
     return _centroid_point(views, [_pixel_centroid(v.mask >= 0.5) for v in views])
 
 
+def _facing(tri: np.ndarray) -> np.ndarray:
+    """(F,) bool: the projected triangles ``tri`` (F, 3, 2) px turned to the camera (positive signed area)."""
+    return (tri[:, 1, 0] - tri[:, 0, 0]) * (tri[:, 2, 1] - tri[:, 0, 1]) \
+        - (tri[:, 2, 0] - tri[:, 0, 0]) * (tri[:, 1, 1] - tri[:, 0, 1]) > 0
+
+
 def _coverage(uv: np.ndarray, depth: np.ndarray, faces: np.ndarray, width: int, height: int) -> np.ndarray:
-    """(H, W) bool: the pixel centres a mesh covers, projected to ``uv`` (V, 2) px with camera depths (V,) (faces
-    with a vertex behind the camera are left out). Scanline rasterisation: each triangle's span of pixel centres
-    on each row it crosses, summed as +1 / -1 marks along the row."""
+    """(H, W) bool: the pixel centres a closed mesh covers, projected to ``uv`` (V, 2) px with camera depths (V,)
+    (faces with a vertex behind the camera are left out). Its faces turned to the camera cover what it covers, so
+    only they are rasterised: scanlines, each triangle's span of pixel centres on each row it crosses, summed as
+    +1 / -1 marks along the row."""
     tri = uv[faces[np.all(depth[faces] > 1e-3, axis=1)]]
-    y0 = np.clip(np.ceil(tri[..., 1].min(axis=1) - 0.5), 0, height).astype(np.int64)
-    y1 = np.clip(np.floor(tri[..., 1].max(axis=1) - 0.5), -1, height - 1).astype(np.int64)
+    tri = tri[_facing(tri)]
+    ty = tri[..., 1]
+    y0 = np.clip(np.ceil(np.minimum(np.minimum(ty[:, 0], ty[:, 1]), ty[:, 2]) - 0.5), 0, height).astype(np.int64)
+    y1 = np.clip(np.floor(np.maximum(np.maximum(ty[:, 0], ty[:, 1]), ty[:, 2]) - 0.5), -1, height - 1).astype(np.int64)
     rows = np.maximum(y1 - y0 + 1, 0)
     owner = np.repeat(np.arange(len(tri)), rows)
     y = y0[owner] + np.arange(len(owner)) - np.repeat(np.cumsum(rows) - rows, rows)
     a = tri[owner]
-    b = np.roll(a, -1, axis=1)  # the triangle's edges a -> b
+    b = a[:, [1, 2, 0]]  # the triangle's edges a -> b
     yc = (y + 0.5)[:, None]
-    lo, hi = np.minimum(a[..., 1], b[..., 1]), np.maximum(a[..., 1], b[..., 1])
+    ay, by = a[..., 1], b[..., 1]
+    lo, hi = np.minimum(ay, by), np.maximum(ay, by)
     crosses = (yc >= lo) & (yc <= hi) & (hi > lo)
-    x = a[..., 0] + (yc - a[..., 1]) * (b[..., 0] - a[..., 0]) / np.where(hi > lo, b[..., 1] - a[..., 1], 1.0)
-    x0 = np.clip(np.ceil(np.where(crosses, x, np.inf).min(axis=1) - 0.5), 0, width)
-    x1 = np.clip(np.floor(np.where(crosses, x, -np.inf).max(axis=1) - 0.5), -1, width - 1)
+    x = a[..., 0] + (yc - ay) * (b[..., 0] - a[..., 0]) / np.where(hi > lo, by - ay, 1.0)
+    left, right = np.where(crosses, x, np.inf), np.where(crosses, x, -np.inf)
+    x0 = np.clip(np.ceil(np.minimum(np.minimum(left[:, 0], left[:, 1]), left[:, 2]) - 0.5), 0, width)
+    x1 = np.clip(np.floor(np.maximum(np.maximum(right[:, 0], right[:, 1]), right[:, 2]) - 0.5), -1, width - 1)
     span = x1 >= x0
     y, x0, x1 = y[span], x0[span].astype(np.int64), x1[span].astype(np.int64)
     n = height * (width + 1)
     marks = np.bincount(y * (width + 1) + x0, minlength=n) - np.bincount(y * (width + 1) + x1 + 1, minlength=n)
     return np.cumsum(marks.reshape(height, width + 1), axis=1)[:, :width] > 0
+
+
+def _edge_band(covered: np.ndarray, width_px: float) -> np.ndarray:
+    """(H, W) bool: the pixels whose centre lies within ``width_px`` of a pixel centre on the other side of the
+    ``covered`` (H, W) bool region's edge (Euclidean distance transforms, on the region's box widened by more than
+    ``width_px``, where every distance within it is found); none when nothing is covered."""
+    from scipy.ndimage import distance_transform_edt
+
+    band = np.zeros_like(covered)
+    rows, cols = np.nonzero(covered.any(axis=1))[0], np.nonzero(covered.any(axis=0))[0]
+    if len(rows) == 0:
+        return band
+    m = int(np.ceil(width_px)) + 1
+    box = np.s_[max(rows[0] - m, 0):rows[-1] + m + 1, max(cols[0] - m, 0):cols[-1] + m + 1]
+    c = covered[box]
+    band[box] = np.where(c, distance_transform_edt(c), distance_transform_edt(~c)) <= width_px
+    return band
 
 
 def _placed_translation(views: list[_ViewData], vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -327,7 +355,6 @@ class _Silhouette:
         body-labelled pixel: the squared distance, beyond :data:`REACH_TOLERANCE_PX`, of each body-labelled pixel
         the body does not cover to the body's silhouette) and the IoU of the hard silhouette with the mask."""
         import torch
-        from scipy.ndimage import distance_transform_edt
         from scipy.spatial import cKDTree
 
         p = uv.detach().double().numpy()
@@ -335,16 +362,9 @@ class _Silhouette:
         target = v.mask >= 0.5
         union = (covered | target).sum()
         iou = float((covered & target).sum() / union) if union else 1.0
-        # contour edges: one adjacent face turned to the camera, the other away
-        tri = p[self.faces]
-        area = (tri[:, 1, 0] - tri[:, 0, 0]) * (tri[:, 2, 1] - tri[:, 0, 1]) \
-            - (tri[:, 2, 0] - tri[:, 0, 0]) * (tri[:, 1, 1] - tri[:, 0, 1])
-        facing = area > 0
+        facing = _facing(p[self.faces])  # contour edges: one adjacent face turned to the camera, the other away
         contour = self.edges[facing[self.edges[:, 2]] != facing[self.edges[:, 3]]][:, :2]
-        band_px = max(BAND_MIN_PX, BAND_SIGMAS * sigma)
-        dist_in = distance_transform_edt(covered)
-        dist_out = distance_transform_edt(~covered)
-        band = np.where(covered, dist_in, dist_out) <= band_px + 0.5
+        band = _edge_band(covered, max(BAND_MIN_PX, BAND_SIGMAS * sigma) + 0.5)
         unreached = v.body & target & ~covered
         ys, xs = np.nonzero(band | unreached)
         zero = uv.sum() * 0.0
