@@ -275,12 +275,11 @@ def _facing(tri: np.ndarray) -> np.ndarray:
 
 
 def _coverage(uv: np.ndarray, depth: np.ndarray, faces: np.ndarray, width: int, height: int) -> np.ndarray:
-    """(H, W) bool: the pixel centres a closed mesh covers, projected to ``uv`` (V, 2) px with camera depths (V,)
-    (faces with a vertex behind the camera are left out). Its faces turned to the camera cover what it covers, so
-    only they are rasterised: scanlines, each triangle's span of pixel centres on each row it crosses, summed as
-    +1 / -1 marks along the row."""
+    """(H, W) bool: the pixel centres a mesh covers, projected to ``uv`` (V, 2) px with camera depths (V,) (faces
+    with a vertex behind the camera are left out; of a closed mesh, the faces turned to the camera cover the same).
+    Scanline rasterisation: each triangle's span of pixel centres on each row it crosses, summed as +1 / -1 marks
+    along the row."""
     tri = uv[faces[np.all(depth[faces] > 1e-3, axis=1)]]
-    tri = tri[_facing(tri)]
     ty = tri[..., 1]
     y0 = np.clip(np.ceil(np.minimum(np.minimum(ty[:, 0], ty[:, 1]), ty[:, 2]) - 0.5), 0, height).astype(np.int64)
     y1 = np.clip(np.floor(np.maximum(np.maximum(ty[:, 0], ty[:, 1]), ty[:, 2]) - 0.5), -1, height - 1).astype(np.int64)
@@ -342,77 +341,137 @@ def _placed_translation(views: list[_ViewData], vertices: np.ndarray, faces: np.
     return shift
 
 
+@dataclass(frozen=True)
+class _EdgePixels:
+    """The pixels of a view that the silhouette and reach terms read at one step (numpy): those in the band around
+    the body's edge and the body-labelled ones it does not cover."""
+
+    edge: np.ndarray
+    """(M, 2) the two vertices of each pixel's nearest contour edge."""
+    centre: np.ndarray
+    """(M, 2) the pixel centres, px."""
+    covered: np.ndarray
+    """(M,) bool: the body covers the pixel centre."""
+    mask: np.ndarray
+    """(M,) the mask's coverage."""
+    body: np.ndarray
+    """(M,) bool: labelled body."""
+    band: np.ndarray
+    """(M,) the silhouette term's weight: 1 / the band's pixel count in the band, 0 elsewhere."""
+    reach: np.ndarray
+    """(M,) the reach term's weight: 1 / the view's body-labelled mask pixel count where the body does not cover
+    one, 0 elsewhere."""
+    iou: float
+    """The hard silhouette's IoU with the mask."""
+
+
+def _joined(parts: list[_EdgePixels], vertices: int, band_scale: np.ndarray, reach_scale: np.ndarray
+            ) -> _EdgePixels:
+    """The ``parts`` of several views as one: their edges' vertices numbered in the views' ``vertices`` each
+    stacked, their weights scaled per view (``band_scale``, ``reach_scale``); the IoU their mean."""
+
+    def cat(name: str, scale: np.ndarray | None = None) -> np.ndarray:
+        return np.concatenate([getattr(x, name) if scale is None else getattr(x, name) * scale[k]
+                               for k, x in enumerate(parts)])
+
+    edge = np.concatenate([x.edge + k * vertices for k, x in enumerate(parts)])
+    return _EdgePixels(edge, cat("centre"), cat("covered"), cat("mask"), cat("body"), cat("band", band_scale),
+                       cat("reach", reach_scale), float(np.mean([x.iou for x in parts])))
+
+
+def _edge_terms(uv: "torch.Tensor", px: _EdgePixels, sigma: float) -> tuple["torch.Tensor", "torch.Tensor"]:
+    """The silhouette term (the weighted sum over ``px`` of ``(s - mask)^2`` on body pixels, ``relu(s - mask)^2``
+    on the others, ``s`` the soft coverage at edge width ``sigma`` px) and the reach term (the weighted sum of the
+    squared distance, beyond :data:`REACH_TOLERANCE_PX`, to the nearest contour edge) of the projections ``uv``
+    (V, 2) px whose vertices ``px.edge`` names."""
+    import torch
+
+    ea, eb = uv[torch.as_tensor(px.edge[:, 0])], uv[torch.as_tensor(px.edge[:, 1])]
+    q = torch.as_tensor(px.centre, dtype=uv.dtype)
+    ab = eb - ea
+    s = ((q - ea) * ab).sum(-1) / (ab * ab).sum(-1).clamp_min(1e-9)
+    closest = ea + s.clamp(0.0, 1.0)[:, None] * ab
+    dist = torch.sqrt(((q - closest) ** 2).sum(-1) + 1e-9)
+    signed = torch.where(torch.as_tensor(px.covered), dist, -dist)
+    diff = torch.sigmoid(signed / sigma) - torch.as_tensor(px.mask, dtype=uv.dtype)
+    per_pixel = torch.where(torch.as_tensor(px.body), diff * diff, torch.relu(diff) ** 2)
+    far = torch.relu(dist - REACH_TOLERANCE_PX) ** 2
+    return ((per_pixel * torch.as_tensor(px.band, dtype=uv.dtype)).sum(),
+            (far * torch.as_tensor(px.reach, dtype=uv.dtype)).sum())
+
+
 class _Silhouette:
     """Per view and step: the body's soft silhouette near its edge and the losses on it."""
 
     def __init__(self, faces: np.ndarray) -> None:
         self.faces = faces
         self.edges = _edge_faces(faces)
+        # every edge has two faces: the faces turned to the camera cover what the mesh covers
+        self.closed = bool(np.all(self.edges[:, 2] != self.edges[:, 3]))
 
-    def loss(self, v: _ViewData, uv: "torch.Tensor", depth: "torch.Tensor", sigma: float
-             ) -> tuple["torch.Tensor", "torch.Tensor", float]:
-        """The silhouette loss (mean over the band's pixels of coverage squared), the reach loss (px^2 per
-        body-labelled pixel: the squared distance, beyond :data:`REACH_TOLERANCE_PX`, of each body-labelled pixel
-        the body does not cover to the body's silhouette) and the IoU of the hard silhouette with the mask."""
-        import torch
+    def pixels(self, v: _ViewData, p: np.ndarray, depth: np.ndarray, sigma: float) -> _EdgePixels:
+        """The pixels the silhouette and reach terms read of view ``v`` with the body's vertices projected to ``p``
+        (V, 2) px at camera depths (V,): the band within :data:`BAND_SIGMAS` ``sigma`` (at least
+        :data:`BAND_MIN_PX`) of the body's edge, and the body-labelled mask pixels it does not cover; each with its
+        nearest contour edge (through points sampled every half pixel along the projected edges)."""
         from scipy.spatial import cKDTree
 
-        p = uv.detach().double().numpy()
-        covered = _coverage(p, depth.detach().double().numpy(), self.faces, v.width, v.height)
+        facing = _facing(p[self.faces])
+        covered = _coverage(p, depth, self.faces[facing] if self.closed else self.faces, v.width, v.height)
         target = v.mask >= 0.5
         union = (covered | target).sum()
         iou = float((covered & target).sum() / union) if union else 1.0
-        facing = _facing(p[self.faces])  # contour edges: one adjacent face turned to the camera, the other away
+        # contour edges: one adjacent face turned to the camera, the other away
         contour = self.edges[facing[self.edges[:, 2]] != facing[self.edges[:, 3]]][:, :2]
         band = _edge_band(covered, max(BAND_MIN_PX, BAND_SIGMAS * sigma) + 0.5)
         unreached = v.body & target & ~covered
         ys, xs = np.nonzero(band | unreached)
-        zero = uv.sum() * 0.0
-        if len(contour) == 0 or len(xs) == 0:
-            return zero, zero, iou
-        # nearest contour edge of each pixel: through points sampled along the projected edges
-        a, b = p[contour[:, 0]], p[contour[:, 1]]
-        steps = np.maximum(np.ceil(np.linalg.norm(b - a, axis=1) * 2).astype(int), 1) + 1
-        edge_of = np.repeat(np.arange(len(contour)), steps)
-        frac = (np.arange(len(edge_of)) - np.repeat(np.cumsum(steps) - steps, steps)) / np.repeat(steps - 1, steps)
-        samples = a[edge_of] + frac[:, None] * (b - a)[edge_of]
+        if len(contour) == 0:
+            ys = xs = np.zeros(0, np.int64)
         centres = np.column_stack([xs + 0.5, ys + 0.5])
-        nearest = edge_of[cKDTree(samples).query(centres)[1]]
-        ea, eb = uv[torch.as_tensor(contour[nearest, 0])], uv[torch.as_tensor(contour[nearest, 1])]
-        q = torch.as_tensor(centres, dtype=uv.dtype)
-        ab = eb - ea
-        s = ((q - ea) * ab).sum(-1) / (ab * ab).sum(-1).clamp_min(1e-9)
-        closest = ea + s.clamp(0.0, 1.0)[:, None] * ab
-        dist = torch.sqrt(((q - closest) ** 2).sum(-1) + 1e-9)
-        in_band = torch.as_tensor(band[ys, xs])
-        signed = torch.where(torch.as_tensor(covered[ys, xs]), dist, -dist)
-        soft = torch.sigmoid(signed / sigma)
-        m = torch.as_tensor(v.mask[ys, xs], dtype=uv.dtype)
-        diff = soft - m
-        is_body = torch.as_tensor(v.body[ys, xs])
-        per_pixel = torch.where(is_body, diff * diff, torch.relu(diff) ** 2)
-        silhouette = per_pixel[in_band].mean() if bool(in_band.any()) else zero
-        far = torch.relu(dist - REACH_TOLERANCE_PX) ** 2
-        reach = torch.where(torch.as_tensor(unreached[ys, xs]), far, 0.0).sum() / max(int((v.body & target).sum()), 1)
-        return silhouette, reach, iou
+        nearest = np.zeros(0, np.int64)
+        if len(xs):
+            a, b = p[contour[:, 0]], p[contour[:, 1]]
+            steps = np.maximum(np.ceil(np.linalg.norm(b - a, axis=1) * 2).astype(int), 1) + 1
+            edge_of = np.repeat(np.arange(len(contour)), steps)
+            frac = (np.arange(len(edge_of)) - np.repeat(np.cumsum(steps) - steps, steps)) / np.repeat(steps - 1,
+                                                                                                        steps)
+            nearest = edge_of[cKDTree(a[edge_of] + frac[:, None] * (b - a)[edge_of]).query(centres)[1]]
+        in_band = band[ys, xs]
+        reached = unreached[ys, xs]
+        return _EdgePixels(contour[nearest], centres, covered[ys, xs], v.mask[ys, xs], v.body[ys, xs],
+                           in_band / max(int(in_band.sum()), 1), reached / max(int((v.body & target).sum()), 1), iou)
+
+    def loss(self, v: _ViewData, uv: "torch.Tensor", depth: "torch.Tensor", sigma: float
+             ) -> tuple["torch.Tensor", "torch.Tensor", float]:
+        """The silhouette loss of one view (mean over the band's pixels), the reach loss (px^2 per body-labelled
+        pixel) and the IoU of the hard silhouette with the mask, of the body projected to ``uv`` (V, 2) px at camera
+        depths (V,)."""
+        px = self.pixels(v, uv.detach().double().numpy(), depth.detach().double().numpy(), sigma)
+        return (*_edge_terms(uv, px, sigma), px.iou)
 
 
 def _sample_outside(outside: "torch.Tensor", uv: "torch.Tensor") -> "torch.Tensor":
-    """Bilinear samples (px) of a padded distance image at pixel positions ``uv`` (N, 2); 0 beyond the frame."""
+    """Bilinear samples (px) of padded distance images (..., H, W) at pixel positions ``uv`` (..., N, 2), an image
+    per leading index; 0 beyond the frame."""
     import torch
 
-    H, W = outside.shape
-    x = (uv[:, 0] - 0.5 + 1.0).clamp(0.0, W - 1.001)
-    y = (uv[:, 1] - 0.5 + 1.0).clamp(0.0, H - 1.001)
+    H, W = outside.shape[-2:]
+    x = (uv[..., 0] - 0.5 + 1.0).clamp(0.0, W - 1.001)
+    y = (uv[..., 1] - 0.5 + 1.0).clamp(0.0, H - 1.001)
     x0, y0 = x.floor().long(), y.floor().long()
     fx, fy = x - x0, y - y0
-    g = outside.to(uv.dtype)
-    return ((1 - fx) * (1 - fy) * g[y0, x0] + fx * (1 - fy) * g[y0, x0 + 1]
-            + (1 - fx) * fy * g[y0 + 1, x0] + fx * fy * g[y0 + 1, x0 + 1])
+    g = outside.to(uv.dtype).flatten(-2)
+
+    def at(dy: int, dx: int) -> "torch.Tensor":
+        return torch.gather(g, -1, (y0 + dy) * W + x0 + dx)
+
+    return (1 - fx) * (1 - fy) * at(0, 0) + fx * (1 - fy) * at(0, 1) + (1 - fx) * fy * at(1, 0) + fx * fy * at(1, 1)
 
 
 class _Views:
-    """The views of one resolution with their cameras as torch tensors, and the data loss on them."""
+    """The views of one resolution with their cameras and distance images stacked as torch tensors, and the data
+    loss on them."""
 
     def __init__(self, views: list[_ViewData], silhouette: _Silhouette, kp_index: dict[str, int]) -> None:
         import torch
@@ -420,47 +479,54 @@ class _Views:
         self.views = views
         self.silhouette = silhouette
         self.kp_index = kp_index
-        self.cams = [tuple(torch.tensor(m, dtype=torch.float32) for m in (v.K, v.R, v.t)) for v in views]
+        self.K, self.R, self.t = (torch.tensor(np.stack([getattr(v, k) for v in views]), dtype=torch.float32)
+                                  for k in ("K", "R", "t"))
+        height, width = max(v.height for v in views), max(v.width for v in views)
+        # the frames padded to the largest with zeros, which read as the frame does
+        self.outside = torch.stack([torch.nn.functional.pad(v.outside, (0, width - v.width, 0, height - v.height))
+                                    for v in views])
+        self.scale = np.array([v.scale for v in views], np.float64)
 
     def loss(self, verts: "torch.Tensor", joints: "torch.Tensor", sigma: float) -> tuple["torch.Tensor", float]:
         """The data loss of a posed body (mean over the views; every term in full-resolution pixels) at silhouette
         edge width ``sigma`` (px of these images), and the mean silhouette IoU."""
         import torch
 
-        total = torch.zeros((), dtype=verts.dtype)
-        iou = []
-        for v, (K, R, t) in zip(self.views, self.cams):
-            f2 = float(v.scale * v.scale)
-            uv, depth = _project(verts, K, R, t)
-            sil, reach, j = self.silhouette.loss(v, uv, depth, sigma)
-            iou.append(j)
-            total = total + sigma * v.scale * sil + f2 * (_inside_term(v, uv) + REACH_WEIGHT * reach)
+        n = len(self.views)
+        uv, depth = _project(verts, self.K, self.R, self.t)
+        p, d = uv.detach().double().numpy(), depth.detach().double().numpy()
+        px = _joined([self.silhouette.pixels(v, p[k], d[k], sigma) for k, v in enumerate(self.views)], len(verts),
+                     sigma * self.scale / n, REACH_WEIGHT * self.scale ** 2 / n)
+        silhouette, reach = _edge_terms(uv.reshape(-1, 2), px, sigma)
+        total = silhouette + reach + self._inside(uv)
+        for k, v in enumerate(self.views):
             if v.keypoints is not None:
-                idx = torch.as_tensor([self.kp_index[n] for n in v.keypoints.names])
-                juv, _ = _project(joints[idx], K, R, t)
+                idx = torch.as_tensor([self.kp_index[name] for name in v.keypoints.names])
+                juv, _ = _project(joints[idx], self.K[k], self.R[k], self.t[k])
                 conf = torch.as_tensor(v.keypoints.confidence, dtype=verts.dtype)
                 err = ((juv - torch.as_tensor(v.keypoints.xy / v.scale, dtype=verts.dtype)) ** 2).sum(-1)
-                total = total + f2 * KEYPOINT_WEIGHT * (conf * err).sum() / conf.sum().clamp_min(1e-6)
-        return total / len(self.views), float(np.mean(iou))
+                total = total + (v.scale ** 2 * KEYPOINT_WEIGHT / n) * (conf * err).sum() / conf.sum().clamp_min(1e-6)
+        return total, px.iou
 
     def inside(self, verts: "torch.Tensor") -> "torch.Tensor":
         """The vertices-inside term alone (mean over the views, full-resolution pixels)."""
-        total = verts.sum() * 0.0
-        for v, (K, R, t) in zip(self.views, self.cams):
-            total = total + v.scale * v.scale * _inside_term(v, _project(verts, K, R, t)[0])
-        return total / len(self.views)
+        return self._inside(_project(verts, self.K, self.R, self.t)[0])
+
+    def _inside(self, uv: "torch.Tensor") -> "torch.Tensor":
+        """The vertices-inside term of the projections ``uv`` (views, V, 2) px: per view the weighted mean squared
+        distance outside the mask, in full-resolution pixels; their mean."""
+        import torch
+
+        weight = torch.as_tensor(INSIDE_WEIGHT * self.scale ** 2 / (len(self.views) * uv.shape[1]), dtype=uv.dtype)
+        return ((_sample_outside(self.outside, uv) ** 2).sum(-1) * weight).sum()
 
 
 def _project(points: "torch.Tensor", K: "torch.Tensor", R: "torch.Tensor", t: "torch.Tensor"
              ) -> tuple["torch.Tensor", "torch.Tensor"]:
-    """Pixel coordinates (N, 2) and camera depth (N,) of world points (metres) in the camera (K, R, t)."""
-    pc = points @ R.T + t
-    return (pc @ K.T)[:, :2] / pc[:, 2:3].clamp_min(1e-3), pc[:, 2]
-
-
-def _inside_term(v: _ViewData, uv: "torch.Tensor") -> "torch.Tensor":
-    """The vertices-inside term of one view (its pixels): weighted mean squared distance outside the mask."""
-    return INSIDE_WEIGHT * (_sample_outside(v.outside, uv) ** 2).mean()
+    """Pixel coordinates (..., N, 2) and camera depths (..., N) of world points (N, 3) (metres) in the cameras
+    (K, R, t) (..., 3, 3), (..., 3, 3), (..., 3)."""
+    pc = points @ R.transpose(-1, -2) + t[..., None, :]
+    return (pc @ K.transpose(-1, -2))[..., :2] / pc[..., 2:3].clamp_min(1e-3), pc[..., 2]
 
 
 def _rest_body(body: BodyModel, shape: dict[str, float], translation: np.ndarray | None = None) -> Any:
