@@ -356,48 +356,50 @@ class _EdgePixels:
     """(M,) the mask's coverage."""
     body: np.ndarray
     """(M,) bool: labelled body."""
-    band: np.ndarray
-    """(M,) the silhouette term's weight: 1 / the band's pixel count in the band, 0 elsewhere."""
-    reach: np.ndarray
-    """(M,) the reach term's weight: 1 / the view's body-labelled mask pixel count where the body does not cover
-    one, 0 elsewhere."""
+    in_band: np.ndarray
+    """(M,) bool: in the band (the others are only unreached)."""
+    unreached: np.ndarray
+    """(M,) bool: labelled body, in the mask and not covered."""
+    body_pixels: int
+    """The view's body-labelled mask pixels (the reach term's denominator), at least 1."""
     iou: float
     """The hard silhouette's IoU with the mask."""
 
 
-def _joined(parts: list[_EdgePixels], vertices: int, band_scale: np.ndarray, reach_scale: np.ndarray
-            ) -> _EdgePixels:
-    """The ``parts`` of several views as one: their edges' vertices numbered in the views' ``vertices`` each
-    stacked, their weights scaled per view (``band_scale``, ``reach_scale``); the IoU their mean."""
-
-    def cat(name: str, scale: np.ndarray | None = None) -> np.ndarray:
-        return np.concatenate([getattr(x, name) if scale is None else getattr(x, name) * scale[k]
-                               for k, x in enumerate(parts)])
-
-    edge = np.concatenate([x.edge + k * vertices for k, x in enumerate(parts)])
-    return _EdgePixels(edge, cat("centre"), cat("covered"), cat("mask"), cat("body"), cat("band", band_scale),
-                       cat("reach", reach_scale), float(np.mean([x.iou for x in parts])))
-
-
-def _edge_terms(uv: "torch.Tensor", px: _EdgePixels, sigma: float) -> tuple["torch.Tensor", "torch.Tensor"]:
-    """The silhouette term (the weighted sum over ``px`` of ``(s - mask)^2`` on body pixels, ``relu(s - mask)^2``
-    on the others, ``s`` the soft coverage at edge width ``sigma`` px) and the reach term (the weighted sum of the
-    squared distance, beyond :data:`REACH_TOLERANCE_PX`, to the nearest contour edge) of the projections ``uv``
-    (V, 2) px whose vertices ``px.edge`` names."""
+def _edge_terms(uv: "torch.Tensor", parts: list[_EdgePixels], sigma: float
+                ) -> list[tuple["torch.Tensor", "torch.Tensor"]]:
+    """Per view of ``parts`` (its vertices the rows of ``uv`` (views x V, 2) px, view after view): the silhouette
+    term (the mean over the band of ``(s - mask)^2`` on body pixels, ``relu(s - mask)^2`` on the others, ``s`` the
+    soft coverage at edge width ``sigma`` px; 0 without a band) and the reach term (the squared distance, beyond
+    :data:`REACH_TOLERANCE_PX`, of each unreached pixel to its nearest contour edge, summed, per body pixel). One
+    set of operations for all views; the sigmoid and the sums apart per view, so each view's figures are those of
+    its pixels alone, to the bit."""
     import torch
 
-    ea, eb = uv[torch.as_tensor(px.edge[:, 0])], uv[torch.as_tensor(px.edge[:, 1])]
-    q = torch.as_tensor(px.centre, dtype=uv.dtype)
+    vertices = len(uv) // len(parts)
+
+    def cat(name: str) -> "torch.Tensor":
+        return torch.as_tensor(np.concatenate([getattr(x, name) for x in parts]))
+
+    edge = np.concatenate([x.edge + k * vertices for k, x in enumerate(parts)])
+    sizes = [len(x.centre) for x in parts]
+    ea, eb = uv[torch.as_tensor(edge[:, 0])], uv[torch.as_tensor(edge[:, 1])]
+    q = cat("centre").to(uv.dtype)
     ab = eb - ea
     s = ((q - ea) * ab).sum(-1) / (ab * ab).sum(-1).clamp_min(1e-9)
     closest = ea + s.clamp(0.0, 1.0)[:, None] * ab
     dist = torch.sqrt(((q - closest) ** 2).sum(-1) + 1e-9)
-    signed = torch.where(torch.as_tensor(px.covered), dist, -dist)
-    diff = torch.sigmoid(signed / sigma) - torch.as_tensor(px.mask, dtype=uv.dtype)
-    per_pixel = torch.where(torch.as_tensor(px.body), diff * diff, torch.relu(diff) ** 2)
+    signed = torch.where(cat("covered"), dist, -dist)
+    soft = torch.cat([torch.sigmoid(x) for x in (signed / sigma).split(sizes)])
+    diff = soft - cat("mask").to(uv.dtype)
+    per_pixel = torch.where(cat("body"), diff * diff, torch.relu(diff) ** 2)
+    in_band = cat("in_band")
+    silhouette = per_pixel[in_band].split([int(x.in_band.sum()) for x in parts])
     far = torch.relu(dist - REACH_TOLERANCE_PX) ** 2
-    return ((per_pixel * torch.as_tensor(px.band, dtype=uv.dtype)).sum(),
-            (far * torch.as_tensor(px.reach, dtype=uv.dtype)).sum())
+    reach = torch.where(cat("unreached"), far, 0.0).split(sizes)
+    zero = uv.sum() * 0.0
+    return [(sil.mean() if len(sil) else zero, r.sum() / x.body_pixels)
+            for sil, r, x in zip(silhouette, reach, parts)]
 
 
 class _Silhouette:
@@ -434,13 +436,11 @@ class _Silhouette:
             a, b = p[contour[:, 0]], p[contour[:, 1]]
             steps = np.maximum(np.ceil(np.linalg.norm(b - a, axis=1) * 2).astype(int), 1) + 1
             edge_of = np.repeat(np.arange(len(contour)), steps)
-            frac = (np.arange(len(edge_of)) - np.repeat(np.cumsum(steps) - steps, steps)) / np.repeat(steps - 1,
-                                                                                                        steps)
+            first = np.repeat(np.cumsum(steps) - steps, steps)
+            frac = (np.arange(len(edge_of)) - first) / np.repeat(steps - 1, steps)
             nearest = edge_of[cKDTree(a[edge_of] + frac[:, None] * (b - a)[edge_of]).query(centres)[1]]
-        in_band = band[ys, xs]
-        reached = unreached[ys, xs]
-        return _EdgePixels(contour[nearest], centres, covered[ys, xs], v.mask[ys, xs], v.body[ys, xs],
-                           in_band / max(int(in_band.sum()), 1), reached / max(int((v.body & target).sum()), 1), iou)
+        return _EdgePixels(contour[nearest], centres, covered[ys, xs], v.mask[ys, xs], v.body[ys, xs], band[ys, xs],
+                           unreached[ys, xs], max(int((v.body & target).sum()), 1), iou)
 
     def loss(self, v: _ViewData, uv: "torch.Tensor", depth: "torch.Tensor", sigma: float
              ) -> tuple["torch.Tensor", "torch.Tensor", float]:
@@ -448,30 +448,28 @@ class _Silhouette:
         pixel) and the IoU of the hard silhouette with the mask, of the body projected to ``uv`` (V, 2) px at camera
         depths (V,)."""
         px = self.pixels(v, uv.detach().double().numpy(), depth.detach().double().numpy(), sigma)
-        return (*_edge_terms(uv, px, sigma), px.iou)
+        return (*_edge_terms(uv, [px], sigma)[0], px.iou)
 
 
 def _sample_outside(outside: "torch.Tensor", uv: "torch.Tensor") -> "torch.Tensor":
-    """Bilinear samples (px) of padded distance images (..., H, W) at pixel positions ``uv`` (..., N, 2), an image
-    per leading index; 0 beyond the frame."""
+    """Bilinear samples (px) of padded distance images (views, H, W) (or one, (H, W)) at pixel positions ``uv``
+    (views x N, 2) (N per image, image after image); 0 beyond the frame."""
     import torch
 
     H, W = outside.shape[-2:]
-    x = (uv[..., 0] - 0.5 + 1.0).clamp(0.0, W - 1.001)
-    y = (uv[..., 1] - 0.5 + 1.0).clamp(0.0, H - 1.001)
+    x = (uv[:, 0] - 0.5 + 1.0).clamp(0.0, W - 1.001)
+    y = (uv[:, 1] - 0.5 + 1.0).clamp(0.0, H - 1.001)
     x0, y0 = x.floor().long(), y.floor().long()
     fx, fy = x - x0, y - y0
-    g = outside.to(uv.dtype).flatten(-2)
-
-    def at(dy: int, dx: int) -> "torch.Tensor":
-        return torch.gather(g, -1, (y0 + dy) * W + x0 + dx)
-
-    return (1 - fx) * (1 - fy) * at(0, 0) + fx * (1 - fy) * at(0, 1) + (1 - fx) * fy * at(1, 0) + fx * fy * at(1, 1)
+    g = outside.to(uv.dtype).reshape(-1)
+    first = torch.arange(len(g) // (H * W)).repeat_interleave(len(uv) * H * W // len(g)) * (H * W) + y0 * W + x0
+    return ((1 - fx) * (1 - fy) * g[first] + fx * (1 - fy) * g[first + 1]
+            + (1 - fx) * fy * g[first + W] + fx * fy * g[first + W + 1])
 
 
 class _Views:
-    """The views of one resolution with their cameras and distance images stacked as torch tensors, and the data
-    loss on them."""
+    """The views of one resolution with their cameras and distance images as torch tensors, and the data loss on
+    them."""
 
     def __init__(self, views: list[_ViewData], silhouette: _Silhouette, kp_index: dict[str, int]) -> None:
         import torch
@@ -479,54 +477,57 @@ class _Views:
         self.views = views
         self.silhouette = silhouette
         self.kp_index = kp_index
-        self.K, self.R, self.t = (torch.tensor(np.stack([getattr(v, k) for v in views]), dtype=torch.float32)
-                                  for k in ("K", "R", "t"))
+        self.cams = [tuple(torch.tensor(m, dtype=torch.float32) for m in (v.K, v.R, v.t)) for v in views]
         height, width = max(v.height for v in views), max(v.width for v in views)
         # the frames padded to the largest with zeros, which read as the frame does
         self.outside = torch.stack([torch.nn.functional.pad(v.outside, (0, width - v.width, 0, height - v.height))
                                     for v in views])
-        self.scale = np.array([v.scale for v in views], np.float64)
 
     def loss(self, verts: "torch.Tensor", joints: "torch.Tensor", sigma: float) -> tuple["torch.Tensor", float]:
         """The data loss of a posed body (mean over the views; every term in full-resolution pixels) at silhouette
         edge width ``sigma`` (px of these images), and the mean silhouette IoU."""
         import torch
 
-        n = len(self.views)
-        uv, depth = _project(verts, self.K, self.R, self.t)
-        p, d = uv.detach().double().numpy(), depth.detach().double().numpy()
-        px = _joined([self.silhouette.pixels(v, p[k], d[k], sigma) for k, v in enumerate(self.views)], len(verts),
-                     sigma * self.scale / n, REACH_WEIGHT * self.scale ** 2 / n)
-        silhouette, reach = _edge_terms(uv.reshape(-1, 2), px, sigma)
-        total = silhouette + reach + self._inside(uv)
-        for k, v in enumerate(self.views):
+        projected = [_project(verts, K, R, t) for K, R, t in self.cams]
+        parts = [self.silhouette.pixels(v, uv.detach().double().numpy(), depth.detach().double().numpy(), sigma)
+                 for v, (uv, depth) in zip(self.views, projected)]
+        uv = torch.stack([uv for uv, _ in projected]).reshape(-1, 2)
+        edge = _edge_terms(uv, parts, sigma)
+        inside = self._inside(uv)
+        total = torch.zeros((), dtype=verts.dtype)
+        for k, (v, (K, R, t)) in enumerate(zip(self.views, self.cams)):
+            f2 = float(v.scale * v.scale)
+            sil, reach = edge[k]
+            total = total + sigma * v.scale * sil + f2 * (inside[k] + REACH_WEIGHT * reach)
             if v.keypoints is not None:
-                idx = torch.as_tensor([self.kp_index[name] for name in v.keypoints.names])
-                juv, _ = _project(joints[idx], self.K[k], self.R[k], self.t[k])
+                idx = torch.as_tensor([self.kp_index[n] for n in v.keypoints.names])
+                juv, _ = _project(joints[idx], K, R, t)
                 conf = torch.as_tensor(v.keypoints.confidence, dtype=verts.dtype)
                 err = ((juv - torch.as_tensor(v.keypoints.xy / v.scale, dtype=verts.dtype)) ** 2).sum(-1)
-                total = total + (v.scale ** 2 * KEYPOINT_WEIGHT / n) * (conf * err).sum() / conf.sum().clamp_min(1e-6)
-        return total, px.iou
+                total = total + f2 * KEYPOINT_WEIGHT * (conf * err).sum() / conf.sum().clamp_min(1e-6)
+        return total / len(self.views), float(np.mean([x.iou for x in parts]))
 
     def inside(self, verts: "torch.Tensor") -> "torch.Tensor":
         """The vertices-inside term alone (mean over the views, full-resolution pixels)."""
-        return self._inside(_project(verts, self.K, self.R, self.t)[0])
-
-    def _inside(self, uv: "torch.Tensor") -> "torch.Tensor":
-        """The vertices-inside term of the projections ``uv`` (views, V, 2) px: per view the weighted mean squared
-        distance outside the mask, in full-resolution pixels; their mean."""
         import torch
 
-        weight = torch.as_tensor(INSIDE_WEIGHT * self.scale ** 2 / (len(self.views) * uv.shape[1]), dtype=uv.dtype)
-        return ((_sample_outside(self.outside, uv) ** 2).sum(-1) * weight).sum()
+        total = verts.sum() * 0.0
+        for v, term in zip(self.views, self._inside(torch.cat([_project(verts, K, R, t)[0] for K, R, t in self.cams]))):
+            total = total + v.scale * v.scale * term
+        return total / len(self.views)
+
+    def _inside(self, uv: "torch.Tensor") -> list["torch.Tensor"]:
+        """Per view, the vertices-inside term (its pixels: the weighted mean squared distance outside the mask) of
+        the projections ``uv`` (views x V, 2) px, view after view."""
+        samples = _sample_outside(self.outside, uv).split(len(uv) // len(self.views))
+        return [INSIDE_WEIGHT * (x ** 2).mean() for x in samples]
 
 
 def _project(points: "torch.Tensor", K: "torch.Tensor", R: "torch.Tensor", t: "torch.Tensor"
              ) -> tuple["torch.Tensor", "torch.Tensor"]:
-    """Pixel coordinates (..., N, 2) and camera depths (..., N) of world points (N, 3) (metres) in the cameras
-    (K, R, t) (..., 3, 3), (..., 3, 3), (..., 3)."""
-    pc = points @ R.transpose(-1, -2) + t[..., None, :]
-    return (pc @ K.transpose(-1, -2))[..., :2] / pc[..., 2:3].clamp_min(1e-3), pc[..., 2]
+    """Pixel coordinates (N, 2) and camera depth (N,) of world points (metres) in the camera (K, R, t)."""
+    pc = points @ R.T + t
+    return (pc @ K.T)[:, :2] / pc[:, 2:3].clamp_min(1e-3), pc[:, 2]
 
 
 def _rest_body(body: BodyModel, shape: dict[str, float], translation: np.ndarray | None = None) -> Any:

@@ -36,6 +36,6 @@ class BodyFitSettings(Options):
         "measured; a capture without a true body always moves on its fitted body (pgc reconstruct --body)"))
 
 
-STAGE = Stage(name="body_fit", command="reconstruct", version="4", inputs=("capture",),
+STAGE = Stage(name="body_fit", command="reconstruct", version="3", inputs=("capture",),
               outputs=("body.json", "body.ply"), folder="ASSET/stages/body_fit", role="body_model",
               settings=BodyFitSettings, events=("body_fit",))
