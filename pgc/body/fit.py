@@ -462,7 +462,8 @@ def _sample_outside(outside: "torch.Tensor", uv: "torch.Tensor") -> "torch.Tenso
     x0, y0 = x.floor().long(), y.floor().long()
     fx, fy = x - x0, y - y0
     g = outside.to(uv.dtype).reshape(-1)
-    first = torch.arange(len(g) // (H * W)).repeat_interleave(len(uv) * H * W // len(g)) * (H * W) + y0 * W + x0
+    images = len(g) // (H * W)
+    first = torch.arange(images).repeat_interleave(len(uv) // images) * (H * W) + y0 * W + x0
     return ((1 - fx) * (1 - fy) * g[first] + fx * (1 - fy) * g[first + 1]
             + (1 - fx) * fy * g[first + W] + fx * fy * g[first + W + 1])
 
