@@ -59,7 +59,7 @@ def test_translation_init_finds_the_point_the_masks_are_centred_on():
 def test_start_translation_places_a_body_the_views_show_in_part():
     """Cameras that frame the top of a body (their images cut it at the bottom): the masks' centroids lie high, and
     matching the body's visible silhouette to them, cut alike, finds its translation."""
-    from pgc.body.fit import _coverage, _placed_translation, _translation_init, _view_data
+    from pgc.body.fit import _coverage, _placed_translation, _Silhouette, _translation_init, _view_data
     from pgc.testing.capture_scenes import dome_cameras
     from pgc.types import View
 
@@ -74,7 +74,7 @@ def test_start_translation_places_a_body_the_views_show_in_part():
         views.append(_view_data(View(top, np.zeros((48, 96, 3)), segmentation=cover), None))
     centre = 0.5 * (pts.min(0) + pts.max(0))
     assert abs(_translation_init(views) - centre - shift)[1] > 0.2  # the masks' centroids alone: far too high
-    assert np.allclose(_placed_translation(views, pts, faces), shift, atol=0.01)
+    assert np.allclose(_placed_translation(views, pts, _Silhouette(faces)), shift, atol=0.01)
 
 
 def test_scanline_coverage_matches_the_barycentric_rasteriser():

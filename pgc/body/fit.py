@@ -320,7 +320,7 @@ def _edge_band(covered: np.ndarray, width_px: float) -> np.ndarray:
     return band
 
 
-def _placed_translation(views: list[_ViewData], vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+def _placed_translation(views: list[_ViewData], vertices: np.ndarray, silhouette: "_Silhouette") -> np.ndarray:
     """The translation (metres) that puts a body's ``vertices`` where the masks are: its visible silhouette's
     centroids brought onto the masks' centroids (both cut by the image borders alike, so a framing that shows part
     of the body places it right), by :data:`PLACEMENT_ROUNDS` fixed-point rounds from its box centre."""
@@ -331,7 +331,8 @@ def _placed_translation(views: list[_ViewData], vertices: np.ndarray, faces: np.
         for v in views:
             pc = (vertices + shift) @ v.R.T + v.t
             uv = (pc @ v.K.T)[:, :2] / np.maximum(pc[:, 2:3], 1e-3)
-            centroids.append(_pixel_centroid(_coverage(uv, pc[:, 2], faces, v.width, v.height)))
+            facing = _facing(uv[silhouette.faces])
+            centroids.append(_pixel_centroid(silhouette.covered(uv, pc[:, 2], facing, v.width, v.height)))
         if any(c is None for c in centroids):
             break
         step = target - _centroid_point(views, centroids)
@@ -411,6 +412,11 @@ class _Silhouette:
         # every edge has two faces: the faces turned to the camera cover what the mesh covers
         self.closed = bool(np.all(self.edges[:, 2] != self.edges[:, 3]))
 
+    def covered(self, p: np.ndarray, depth: np.ndarray, facing: np.ndarray, width: int, height: int) -> np.ndarray:
+        """(H, W) bool: the pixel centres the mesh covers, its vertices projected to ``p`` (V, 2) px at camera depths
+        (V,), ``facing`` (F,) its faces turned to the camera (:func:`_coverage` of those alone when it is closed)."""
+        return _coverage(p, depth, self.faces[facing] if self.closed else self.faces, width, height)
+
     def pixels(self, v: _ViewData, p: np.ndarray, depth: np.ndarray, sigma: float) -> _EdgePixels:
         """The pixels the silhouette and reach terms read of view ``v`` with the body's vertices projected to ``p``
         (V, 2) px at camera depths (V,): the band within :data:`BAND_SIGMAS` ``sigma`` (at least
@@ -419,7 +425,7 @@ class _Silhouette:
         from scipy.spatial import cKDTree
 
         facing = _facing(p[self.faces])
-        covered = _coverage(p, depth, self.faces[facing] if self.closed else self.faces, v.width, v.height)
+        covered = self.covered(p, depth, facing, v.width, v.height)
         target = v.mask >= 0.5
         union = (covered | target).sum()
         iou = float((covered & target).sum() / union) if union else 1.0
@@ -550,12 +556,10 @@ def _start_search(body: BodyModel, shape: dict[str, float], views: _Views, sigma
     (value, loss) pairs evaluated."""
     import torch
 
-    faces = np.asarray(body.faces)
-
     def placed(value: float | None) -> tuple[dict[str, float], np.ndarray, "Any"]:
         trial = dict(shape) if value is None else {**shape, START_PARAMETER: value}
         out = _rest_body(body, trial)
-        shift = _placed_translation(views.views, out.vertices[0].double().numpy(), faces)
+        shift = _placed_translation(views.views, out.vertices[0].double().numpy(), views.silhouette)
         return trial, shift, out
 
     if START_PARAMETER not in shape:
