@@ -303,20 +303,39 @@ def _coverage(uv: np.ndarray, depth: np.ndarray, faces: np.ndarray, width: int, 
     return np.cumsum(marks.reshape(height, width + 1), axis=1)[:, :width] > 0
 
 
+def _dilated(a: np.ndarray, radius: float) -> np.ndarray:
+    """(H, W) bool: the pixels whose centre lies within ``radius`` px of the centre of a True pixel of ``a`` (H, W)
+    bool (nothing beyond its border): per row offset ``dy``, the rows dilated by the widest ``dx`` with
+    ``dx^2 + dy^2 <= radius^2``, moved by ``dy``."""
+    from scipy.ndimage import maximum_filter1d
+
+    out = np.zeros_like(a)
+    H = a.shape[0]
+    r = min(int(np.floor(radius)), H - 1)
+    rows: dict[int, np.ndarray] = {}
+    for dy in range(-r, r + 1):
+        w = int(np.floor(np.sqrt(radius * radius - dy * dy)))
+        if w not in rows:
+            rows[w] = maximum_filter1d(a.view(np.uint8), 2 * w + 1, axis=1, mode="constant").view(bool)
+        if dy >= 0:
+            out[dy:] |= rows[w][:H - dy]
+        else:
+            out[:H + dy] |= rows[w][-dy:]
+    return out
+
+
 def _edge_band(covered: np.ndarray, width_px: float) -> np.ndarray:
     """(H, W) bool: the pixels whose centre lies within ``width_px`` of a pixel centre on the other side of the
-    ``covered`` (H, W) bool region's edge (Euclidean distance transforms, on the region's box widened by more than
-    ``width_px``, where every distance within it is found); none when nothing is covered."""
-    from scipy.ndimage import distance_transform_edt
-
+    ``covered`` (H, W) bool region's edge (:func:`_dilated`, on the region's box widened by more than ``width_px``,
+    where every such pixel lies); none when nothing is covered."""
     band = np.zeros_like(covered)
     rows, cols = np.nonzero(covered.any(axis=1))[0], np.nonzero(covered.any(axis=0))[0]
     if len(rows) == 0:
         return band
-    m = int(np.ceil(width_px)) + 1
+    m = int(np.floor(width_px)) + 1
     box = np.s_[max(rows[0] - m, 0):rows[-1] + m + 1, max(cols[0] - m, 0):cols[-1] + m + 1]
     c = covered[box]
-    band[box] = np.where(c, distance_transform_edt(c), distance_transform_edt(~c)) <= width_px
+    band[box] = np.where(c, _dilated(~c, width_px), _dilated(c, width_px))
     return band
 
 
