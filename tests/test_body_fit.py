@@ -95,6 +95,30 @@ def test_scanline_coverage_matches_the_barycentric_rasteriser():
     assert np.array_equal(covered, truth.reshape(48, 64))
 
 
+def test_edge_band_is_the_distance_transforms_band():
+    """The band by row-wise dilations holds the pixels whose Euclidean distance to the other side is within the width,
+    as thresholding the two distance transforms does (masks of blobs and noise, widths of the fit's bands and others,
+    boxes cut by the image border)."""
+    from scipy.ndimage import distance_transform_edt
+
+    from pgc.body.fit import _edge_band
+
+    rng = np.random.default_rng(3)
+    for _ in range(300):
+        h, w = rng.integers(1, 50, 2)
+        covered = rng.random((h, w)) < rng.uniform(0.02, 0.98)
+        if rng.random() < 0.5:  # one blob, possibly at the border
+            y, x = rng.integers(0, h), rng.integers(0, w)
+            covered[:] = False
+            covered[max(y - 5, 0):y + 5, max(x - 8, 0):x + 3] = True
+        if covered.all() or not covered.any():
+            continue
+        width = float(rng.choice([2.5, 4.1, 9.5, 3.0, 5.0, rng.uniform(0.5, 12.0)]))
+        expected = np.where(covered, distance_transform_edt(covered), distance_transform_edt(~covered)) <= width
+        assert np.array_equal(_edge_band(covered, width), expected)
+    assert not _edge_band(np.zeros((4, 6), bool), 2.5).any()
+
+
 def test_views_are_chosen_far_apart():
     from pgc.body.fit import spread_views
     from pgc.sampling import spread
