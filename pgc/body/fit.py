@@ -514,6 +514,8 @@ class _Views:
         edge width ``sigma`` (px of these images), and the mean silhouette IoU."""
         import torch
 
+        # projections per view, the edge terms, then the vertices-inside term: the per-view loss's order, so that
+        # autograd sums every gradient in the same order and the fit's arithmetic is that of the views one by one
         projected = [_project(verts, K, R, t) for K, R, t in self.cams]
         parts = [self.silhouette.pixels(v, uv.detach().double().numpy(), depth.detach().double().numpy(), sigma)
                  for v, (uv, depth) in zip(self.views, projected)]
