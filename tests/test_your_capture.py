@@ -14,12 +14,17 @@ from pgc.cli import main
 from pgc.io.body_fit import BODY_FIT_DIR, read_body_fit
 from pgc.testing.capture_scenes import strip_ground_truth
 
-FAST_SIMULATION = """
+FAST = """
 [simulator.xpbd-native]
 substeps = 10
 iterations = 10
 settle_frames = 3
+[stages.body_fit]
+iterations = 60
+views = 4
 """
+"""A shorter simulation and body fit than the tiny demo's (the end-to-end test checks that they run and are used;
+tests/test_body_fit.py, what the fit recovers)."""
 
 
 @pytest.fixture(scope="module")
@@ -33,7 +38,7 @@ def config(tmp_path_factory) -> Path:
     from importlib import resources
 
     path = tmp_path_factory.mktemp("own_config") / "config.toml"
-    path.write_text((resources.files("pgc") / "presets" / "demo_tiny.toml").read_text() + FAST_SIMULATION)
+    path.write_text((resources.files("pgc") / "presets" / "demo_tiny.toml").read_text() + FAST)
     return path
 
 
