@@ -32,6 +32,11 @@ def overlapping_gaussians(n: int, seed: int, sh_k: int = 16) -> WorldGaussians:
 
 
 os.environ.setdefault("PGC_CAPTURE_CACHE", "off")  # no test fills the user's capture cache (tests of it set their own)
+os.environ.setdefault("OMP_WAIT_POLICY", "passive")
+"""OpenMP threads (the native XPBD kernel's, torch's, Open3D's; here and in the tests' subprocesses) sleep at a
+barrier instead of spinning: under ``make test`` two workers share the cores, and a thread spinning for one that
+is descheduled burns CPU for nothing (the native simulator's tests: 64 -> 48 CPU s on 2 cores; results do not
+depend on it). Set before any OpenMP runtime loads (none of the imports above loads one)."""
 
 
 def pytest_configure(config: pytest.Config) -> None:
