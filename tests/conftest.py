@@ -236,6 +236,25 @@ def tiny_demo(tmp_path_factory, pytestconfig) -> Path:
     return out
 
 
+SHORT_SIMULATION = """
+[simulator.xpbd-native]
+substeps = 10
+iterations = 10
+settle_frames = 3
+"""
+"""The native XPBD simulator at a third of the paper's substeps, half its iterations and 3 settle frames (a sixth of
+its steps per frame), for end-to-end tests that check the pipeline runs, not how the cloth drapes."""
+
+
+def fast_sweep_config(folder: Path) -> Path:
+    """examples/sweeps/tiny-fast.toml with :data:`SHORT_SIMULATION`, written into ``folder``: the tests' tiny
+    sweeps' settings."""
+    path = folder / "tiny-fast-short-simulation.toml"
+    fast = Path(__file__).parents[1] / "examples" / "sweeps" / "tiny-fast.toml"
+    path.write_text(fast.read_text() + SHORT_SIMULATION)
+    return path
+
+
 @pytest.fixture(scope="session")
 def default_scene_renderer():
     """The scene renderer of the default configuration (Mitsuba), as ``pgc synth`` without ``--config`` uses."""

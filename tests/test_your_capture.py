@@ -10,15 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import SHORT_SIMULATION
 from pgc.cli import main
 from pgc.io.body_fit import BODY_FIT_DIR, read_body_fit
 from pgc.testing.capture_scenes import strip_ground_truth
 
-FAST = """
-[simulator.xpbd-native]
-substeps = 10
-iterations = 10
-settle_frames = 3
+FAST = SHORT_SIMULATION + """
 [stages.body_fit]
 iterations = 60
 views = 4
