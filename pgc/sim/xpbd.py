@@ -40,7 +40,7 @@ class DistanceWeights(NamedTuple):
 
 
 def distance_weights(ops: ArrayOps, inv_mass: Any, group: tuple) -> DistanceWeights:
-    """The :class:`DistanceWeights` of ``group``: computed once, not in every sweep."""
+    """The :class:`DistanceWeights` of ``group``: computed once per frame, not in every sweep."""
     ci, cj, _, alpha_t, _ = group
     wi, wj = inv_mass[ci], inv_mass[cj]
     denom = wi + wj + alpha_t
