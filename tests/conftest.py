@@ -32,6 +32,11 @@ def overlapping_gaussians(n: int, seed: int, sh_k: int = 16) -> WorldGaussians:
 
 
 os.environ.setdefault("PGC_CAPTURE_CACHE", "off")  # no test fills the user's capture cache (tests of it set their own)
+os.environ.setdefault("OMP_WAIT_POLICY", "passive")
+"""OpenMP threads (the native XPBD kernel's, torch's, Open3D's; here and in the tests' subprocesses) sleep at a
+barrier instead of spinning: under ``make test`` two workers share the cores, and a thread spinning for one that
+is descheduled burns CPU for nothing (the native simulator's tests: 64 -> 48 CPU s on 2 cores; results do not
+depend on it). Set before any OpenMP runtime loads (none of the imports above loads one)."""
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -102,19 +107,17 @@ def pytest_terminal_summary(terminalreporter, config: pytest.Config) -> None:
 
 
 FILE_CPU_SECONDS = {
-    "test_kill.py": 153, "test_material_fit.py": 146, "test_demo.py": 118, "test_body_fit.py": 98,
-    "test_xpbd.py": 96, "test_isa_levels.py": 94, "test_eval_independent.py": 89, "test_sweep.py": 89,
-    "test_splat_jax.py": 73, "test_reproducible.py": 63, "test_synth_body.py": 60, "test_sweep_files.py": 59,
-    "test_recon_reconstructors.py": 55, "test_albedo_training.py": 54, "test_splat_jax_fit.py": 51,
-    "test_your_capture.py": 47, "test_newton_cloth.py": 38, "test_xpbd_native.py": 38, "test_conformance.py": 37,
-    "test_splat_fit_loop.py": 36, "test_xpbd_synth.py": 35,
+    "test_kill.py": 129, "test_isa_levels.py": 85, "test_body_fit.py": 83, "test_sweep.py": 67,
+    "test_reproducible.py": 64, "test_splat_jax.py": 60, "test_xpbd.py": 57, "test_material_fit.py": 56,
+    "test_demo.py": 56, "test_synth_body.py": 56, "test_splat_jax_fit.py": 50, "test_sweep_files.py": 49,
+    "test_albedo_training.py": 46, "test_splat_fit_loop.py": 34, "test_eval_independent.py": 34,
+    "test_xpbd_native.py": 29, "test_recon_reconstructors.py": 28, "test_newton_cloth.py": 27, "test_xpbd_synth.py": 26,
+    "test_synth_capture.py": 26, "test_conformance.py": 23, "test_your_capture.py": 21,
 }
-"""The costliest test files' CPU seconds (``--cpu-durations`` of a whole ``make test``, 2026-12-04, the files above
-35 s; measured on their own after that run: test_eval_independent's, whose two slow tests share one truth
-simulation, the JAX splat files' after their fit compiles once per view size, and test_material_fit's with the
-polish test's 60 s added; docs/architecture.md, "Running the tests"), which order the files under pytest-xdist.
-test_demo's holds the session's ``tiny_demo`` (about 85 s), which the first of its users builds: test_demo starts
-early (third), so the other users (test_eval_independent, test_your_capture, ...) find it built."""
+"""The costliest test files' CPU seconds (``--cpu-durations`` of a whole ``make test``, 2026-12-04 evening, the files
+above 20 s; docs/architecture.md, "Running the tests"), which order the files under pytest-xdist. test_demo's holds
+the session's ``tiny_demo`` (about 35 s), which the first of its users builds: test_demo starts early, so the other
+users (test_eval_independent, test_your_capture, ...) find it built."""
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -229,6 +232,25 @@ def tiny_demo(tmp_path_factory, pytestconfig) -> Path:
             assert main(["demo", "--preset", "tiny", "--out", str(out), "--quiet"]) == 0
             done.touch()
     return out
+
+
+SHORT_SIMULATION = """
+[simulator.xpbd-native]
+substeps = 10
+iterations = 10
+settle_frames = 3
+"""
+"""The native XPBD simulator at a third of the paper's substeps, half its iterations and 3 settle frames (a sixth of
+its steps per frame), for end-to-end tests that check the pipeline runs, not how the cloth drapes."""
+
+
+def fast_sweep_config(folder: Path) -> Path:
+    """examples/sweeps/tiny-fast.toml with :data:`SHORT_SIMULATION`, written into ``folder``: the tests' tiny
+    sweeps' settings."""
+    path = folder / "tiny-fast-short-simulation.toml"
+    fast = Path(__file__).parents[1] / "examples" / "sweeps" / "tiny-fast.toml"
+    path.write_text(fast.read_text() + SHORT_SIMULATION)
+    return path
 
 
 @pytest.fixture(scope="session")

@@ -70,7 +70,7 @@ def test_metrics_keep_each_mode_of_the_same_renders(tmp_path):
     assert set(with_modes(path, _result("appearance", 20.0))["modes"]) == {"appearance"}
 
 
-TRUTH_OPTIONS = "truth_options = {substeps = 4, iterations = 4, settle_frames = 4}\n"
+TRUTH_OPTIONS = "truth_options = {substeps = 2, iterations = 2, settle_frames = 2}\n"
 
 
 @pytest.fixture(scope="module")
@@ -109,7 +109,7 @@ def test_independent_truth_is_simulated_on_its_own_and_both_modes_are_recorded(a
 
     figures = independent["truth_simulation"]
     assert figures["simulator"] == "newton-vbd" and figures["resolution_factor"] == 2.0
-    assert figures["options"]["substeps"] == 4 and figures["options"]["density"] == 0.2  # the truth's own cloth
+    assert figures["options"]["substeps"] == 2 and figures["options"]["density"] == 0.2  # the truth's own cloth
     capture_vertices = len(read_mesh(capture / "ground_truth" / "garment.obj").vertices)
     assert figures["rest_vertices"] > 3 * capture_vertices  # edges half as long: about 4x the vertices
     for result in (appearance, independent):

@@ -16,10 +16,11 @@ lower priority than the test, which watches for short phases (the writes) betwee
 
 from __future__ import annotations
 
-import glob
+import fnmatch
 import hashlib
 import json
 import os
+import re
 import resource
 import signal
 import subprocess
@@ -139,6 +140,12 @@ class Command:
         os.setpriority(os.PRIO_PROCESS, self.proc.pid, os.getpriority(os.PRIO_PROCESS, 0) + NICE)
         self.seen: dict[str, float] = {}
         self.last_cpu = 0.0
+        self.patterns: dict[str, tuple[Path, re.Pattern]] = {}
+        """Per phase, the folder it leaves its files in and their names' pattern (a folder's listing and a
+        match per poll: a third of the CPU of a glob per phase)."""
+        for phase, pattern in PHASES[command].items():
+            folder, _, name = pattern.format(pid=self.proc.pid).rpartition("/")
+            self.patterns[phase] = (w / folder, re.compile(fnmatch.translate(name)))
 
     def cpu(self) -> float:
         """The command's CPU seconds so far (its threads and waited-for subprocesses; 10 ms steps)."""
@@ -150,9 +157,17 @@ class Command:
         return self.last_cpu
 
     def look(self, phases: list[str]) -> None:
+        listings: dict[Path, list[str]] = {}
         for phase in phases:
-            if phase not in self.seen and glob.glob(str(self.w / PHASES[self.command][phase].format(
-                    pid=self.proc.pid))):
+            if phase in self.seen:
+                continue
+            folder, pattern = self.patterns[phase]
+            if folder not in listings:
+                try:
+                    listings[folder] = os.listdir(folder)
+                except FileNotFoundError:
+                    listings[folder] = []
+            if any(pattern.match(name) for name in listings[folder]):
                 self.seen[phase] = self.cpu()
 
     def wait_for(self, phase: str) -> str | None:

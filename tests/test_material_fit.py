@@ -38,17 +38,31 @@ def renderer():
     return default_registry().create("pbr_renderer", "mitsuba", {"spp": 32, "max_depth": 2})
 
 
-@pytest.mark.slow
-def test_fit_recovers_sheen_parameters_and_light(renderer) -> None:
-    truth = {"roughness": 0.5, "sheen_color": [0.5, 0.45, 0.3], "sheen_roughness": 0.35}
+SHEEN_TRUTH = {"roughness": 0.5, "sheen_color": [0.5, 0.45, 0.3], "sheen_roughness": 0.35}
+
+
+@pytest.fixture(scope="module")
+def sheen_fit(renderer):
+    """pgc-sheen fitted from its defaults on a 6-view 32 px scene of the sheen truth, Adam then the polish at
+    16 spp (Adam's end point, figures["polish"]["adam"], is what Adam alone returns: the polish starts from it).
+    Over fit seeds 0, 1 and 2 the 16-spp polish converged in 7, 4 and 3 of its 10 iterations (9 at the default
+    64 spp, seed 0), the light within 1.5 %."""
     texture = checker_texture(32)
-    capture = synthetic_capture(Material("pgc-sheen", truth, texture), n_views=6, size=32)
-    init = Material("pgc-sheen", {}, texture)
-    fit = renderer.fit(capture, folded_sheet(n=16), init,
-                       FAST.model_copy(update={"max_image_side": 32, "polish": False}))  # Adam alone (the default)
-    p, f = fit.material.params, fit.figures
+    capture = synthetic_capture(Material("pgc-sheen", SHEEN_TRUTH, texture), n_views=6, size=32)
+    fit = renderer.fit(capture, folded_sheet(n=16), Material("pgc-sheen", {}, texture),
+                       FAST.model_copy(update={"max_image_side": 32, "polish": True, "polish_spp": 16}))
+    return fit, capture, texture
+
+
+@pytest.mark.slow
+def test_fit_recovers_sheen_parameters_and_light(sheen_fit) -> None:
+    """Adam alone (the default): its end point in the polished fit."""
+    truth = SHEEN_TRUTH
+    fit, capture, texture = sheen_fit
+    p, f = dict(fit.figures["polish"]["adam"]), fit.figures
+    radiance = np.array(p.pop("radiance"))
     assert f["stopped"] == "plateau" and f["iterations"] < FAST.max_iterations
-    np.testing.assert_allclose(fit.light.radiance, LIGHT, rtol=0.04)
+    np.testing.assert_allclose(radiance, LIGHT, rtol=0.04)
     # 0.06 before the radiance became the emitter's own value (an unbiased radiance gradient); 0.062 measured after
     assert abs(p["sheen_roughness"] - truth["sheen_roughness"]) < 0.075
     # The sheen colour and the diffuse roughness are weakly constrained: the loss is nearly flat along them
@@ -62,24 +76,20 @@ def test_fit_recovers_sheen_parameters_and_light(renderer) -> None:
     assert 0.0 <= p["roughness"] <= 1.0
     reference = default_registry().create("pbr_renderer", "mitsuba", {"spp": 256, "max_depth": 2})
     errors = {}
-    for name, (params, radiance) in {"truth": (truth, LIGHT), "fit": (p, fit.light.radiance)}.items():
+    for name, (params, light) in {"truth": (truth, LIGHT), "fit": (p, radiance)}.items():
         errors[name] = np.mean([masked_mse(reference.render(folded_sheet(n=16), Material("pgc-sheen", params, texture),
-                                                            Light(radiance), v.camera).color, v.target, v.weight)
+                                                            Light(light), v.camera).color, v.target, v.weight)
                                 for v in prepare_views(capture, 32)])
     assert errors["fit"] < 1.5 * errors["truth"], errors
 
 
 @pytest.mark.slow
-def test_polish_converges_and_lowers_its_cost(renderer) -> None:
-    """The scene of the test above with the polish: it converges (step tolerance), lowers its cost from Adam's
-    end point, keeps the parameters in bounds and the light within 4 %. (The targets' 128-spp noise, about 0.03
-    per pixel, leaves the weakly determined roughness and sheen colour 10-40 % uncertain on this small scene;
+def test_polish_converges_and_lowers_its_cost(sheen_fit) -> None:
+    """The polish of the fit above converges (step tolerance), lowers its cost from Adam's end point, keeps the
+    parameters in bounds and the light within 4 %. (The targets' 128-spp noise, about 0.03 per pixel, leaves the
+    weakly determined roughness and sheen colour 10-40 % uncertain on this small scene;
     tests/test_least_squares.py checks that the polish's estimator removes the render-noise bias.)"""
-    truth = {"roughness": 0.5, "sheen_color": [0.5, 0.45, 0.3], "sheen_roughness": 0.35}
-    texture = checker_texture(32)
-    capture = synthetic_capture(Material("pgc-sheen", truth, texture), n_views=6, size=32)
-    fit = renderer.fit(capture, folded_sheet(n=16), Material("pgc-sheen", {}, texture),
-                       FAST.model_copy(update={"max_image_side": 32, "polish": True}))
+    fit = sheen_fit[0]
     polish, p = fit.figures["polish"], fit.material.params
     assert polish["stopped"] == "converged" and polish["loss_after"] < polish["loss_before"], polish
     assert 0.0 <= p["roughness"] <= 1.0 and 0.01 <= p["sheen_roughness"] <= 1.0

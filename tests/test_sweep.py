@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from conftest import fast_sweep_config
 from pgc.errors import PGCConfigError
 from pgc.sweep.engine import Task, run_tasks, thread_environment
 
@@ -276,9 +277,8 @@ def tiny_sweep(tmp_path_factory):
     from pgc.sweep.runner import run_sweep
 
     root = tmp_path_factory.mktemp("sweep")
-    fast = Path(__file__).parents[1] / "examples" / "sweeps" / "tiny-fast.toml"
     path = root / "tiny.toml"
-    path.write_text(TINY.format(fast=fast))
+    path.write_text(TINY.format(fast=fast_sweep_config(root)))
     # this process's own thread counts (torch: every core), not a worker's allotment: the records must not
     # depend on them
     return path, root / "here", run_sweep(path, root / "here")

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import fast_sweep_config
 from pgc.errors import PGCConfigError
 
 SWEEPS = Path(__file__).parents[1] / "examples" / "sweeps"
@@ -223,7 +224,7 @@ def test_tiny_sweep_on_held_out_views_in_both_modes(tmp_path):
     from pgc.sweep.runner import run_sweep
 
     path = tmp_path / "m.toml"
-    path.write_text(HELD_OUT_BOTH_MODES.format(fast=SWEEPS / "tiny-fast.toml"))
+    path.write_text(HELD_OUT_BOTH_MODES.format(fast=fast_sweep_config(tmp_path)))
     out = tmp_path / "out"
     result = run_sweep(path, out)
     assert result["failed"] == {} and result["computed"] == 8  # capture, split, 2 assets, 2 runs, 2 mode evals

@@ -10,16 +10,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import SHORT_SIMULATION
 from pgc.cli import main
 from pgc.io.body_fit import BODY_FIT_DIR, read_body_fit
 from pgc.testing.capture_scenes import strip_ground_truth
 
-FAST_SIMULATION = """
-[simulator.xpbd-native]
-substeps = 10
-iterations = 10
-settle_frames = 3
+FAST = SHORT_SIMULATION + """
+[stages.body_fit]
+iterations = 60
+views = 4
 """
+"""A shorter simulation and body fit than the tiny demo's (the end-to-end test checks that they run and are used;
+tests/test_body_fit.py, what the fit recovers)."""
 
 
 @pytest.fixture(scope="module")
@@ -33,7 +35,7 @@ def config(tmp_path_factory) -> Path:
     from importlib import resources
 
     path = tmp_path_factory.mktemp("own_config") / "config.toml"
-    path.write_text((resources.files("pgc") / "presets" / "demo_tiny.toml").read_text() + FAST_SIMULATION)
+    path.write_text((resources.files("pgc") / "presets" / "demo_tiny.toml").read_text() + FAST)
     return path
 
 

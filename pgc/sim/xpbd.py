@@ -26,25 +26,46 @@ def unit(ops: ArrayOps, v: Any) -> Any:
     return v / ops.xp.where(n > EPS, n, 1.0)[..., None]
 
 
-def project_distance(ops: ArrayOps, p: Any, inv_mass: Any, group: tuple, lam: Any) -> tuple[Any, Any]:
+class DistanceWeights(NamedTuple):
+    """What :func:`project_distance` needs of a constraint group's masses and compliance, fixed during a run."""
+
+    wi: Any
+    """(C, 1) inverse mass of each constraint's vertex i."""
+    wj_neg: Any
+    """(C, 1) minus the inverse mass of vertex j."""
+    movable: Any
+    """(C,) ``w_i + w_j + alpha_t > 0``: False for two pinned vertices with zero compliance."""
+    denom: Any
+    """(C,) ``w_i + w_j + alpha_t``, 1 where not ``movable``."""
+
+
+def distance_weights(ops: ArrayOps, inv_mass: Any, group: tuple) -> DistanceWeights:
+    """The :class:`DistanceWeights` of ``group``: computed once per frame, not in every sweep."""
+    ci, cj, _, alpha_t, _ = group
+    wi, wj = inv_mass[ci], inv_mass[cj]
+    denom = wi + wj + alpha_t
+    movable = denom > 0
+    return DistanceWeights(wi[:, None], -wj[:, None], movable, ops.xp.where(movable, denom, 1.0))
+
+
+def project_distance(ops: ArrayOps, p: Any, weights: DistanceWeights, group: tuple, lam: Any) -> tuple[Any, Any]:
     """One XPBD update of a group of distance constraints ``C = |p_i - p_j| - L``.
 
     ``dlam = share * (-C - alpha_t lam) / (w_i + w_j + alpha_t)``; ``p_i += w_i dlam n``,
     ``p_j -= w_j dlam n`` with ``n`` the unit direction i - j. Constraints of zero length (no direction) or
-    between two pinned vertices with zero compliance are left unchanged.
+    between two pinned vertices with zero compliance are left unchanged. ``weights``: the group's
+    :func:`distance_weights`.
     """
     xp = ops.xp
     ci, cj, rest, alpha_t, share = group
     d = p[ci] - p[cj]
     length = ops.norm(d)
-    wi, wj = inv_mass[ci], inv_mass[cj]
-    denom = wi + wj + alpha_t
-    good = (length > EPS) & (denom > 0)
+    good = (length > EPS) & weights.movable
     n = d / xp.where(good, length, 1.0)[:, None]
-    dlam = xp.where(good, (rest - length - alpha_t * lam) / xp.where(good, denom, 1.0), 0.0) * share
+    dlam = xp.where(good, (rest - length - alpha_t * lam) / weights.denom, 0.0) * share
     corr = dlam[:, None] * n
-    p = ops.index_add(p, ci, wi[:, None] * corr)
-    p = ops.index_add(p, cj, -wj[:, None] * corr)
+    p = ops.index_add(p, ci, weights.wi * corr)
+    p = ops.index_add(p, cj, weights.wj_neg * corr)
     return p, lam + dlam
 
 
@@ -240,6 +261,7 @@ def advance_frame(ops: ArrayOps, s: StepSettings, statics: Statics, x: Any, v: A
     """
     xp = ops.xp
     lam0 = tuple(xp.zeros_like(g[2]) for g in statics.groups)
+    weights = tuple(distance_weights(ops, statics.inv_mass, g) for g in statics.groups)
 
     def substep(k: Any, carry: tuple) -> tuple:
         x, v, _ = carry
@@ -260,8 +282,8 @@ def advance_frame(ops: ArrayOps, s: StepSettings, statics: Statics, x: Any, v: A
         def sweep(_: Any, state: tuple) -> tuple:
             p, lam = state
             out = []
-            for g, lg in zip(statics.groups, lam):
-                p, lg = project_distance(ops, p, statics.inv_mass, g, lg)
+            for g, w, lg in zip(statics.groups, weights, lam):
+                p, lg = project_distance(ops, p, w, g, lg)
                 out.append(lg)
             p, _ = push_out(ops, p, con.point, con.normal, active, s.offset)
             return p, tuple(out)
