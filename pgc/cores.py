@@ -8,12 +8,25 @@ from typing import Callable, Sequence, TypeVar
 
 T = TypeVar("T")
 
+BLAS_THREADS = "OPENBLAS_NUM_THREADS"
+"""The variable that sets OpenBLAS's thread count (numpy's and scipy's BLAS), read once when it loads."""
+
 
 def usable_cores() -> int:
     """Cores this process may run on (its CPU affinity where the OS reports one)."""
     if hasattr(os, "sched_getaffinity"):
         return len(os.sched_getaffinity(0))
     return os.cpu_count() or 1
+
+
+def keep_blas_single_threaded() -> None:
+    """Hold OpenBLAS to one thread unless whoever started the process chose a count (:data:`BLAS_THREADS`).
+
+    PGC's BLAS products are tall and thin (N points by a 3 x 3 matrix): a second thread gains nothing there,
+    and while another process keeps the cores busy its waits at every call cost 10-60x (docs/architecture.md,
+    "BLAS threads"). OpenBLAS reads the variable when numpy first loads it: ``import pgc`` calls this, so the
+    command line and everything importing pgc before numpy get one thread; the results are the same bits."""
+    os.environ.setdefault(BLAS_THREADS, "1")
 
 
 def given_threads() -> int | None:

@@ -7,6 +7,7 @@ import os
 import resource
 from pathlib import Path
 
+import pgc  # noqa: F401  (before numpy: it holds numpy's BLAS to one thread, see pgc.cores)
 import numpy as np
 import pytest
 

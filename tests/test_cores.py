@@ -59,3 +59,25 @@ def test_one_candidate_or_one_core_never_probes(monkeypatch):
     assert ThreadChooser.for_cores().candidates == [1]
     with pytest.raises(ValueError):
         ThreadChooser([])
+
+
+OPENBLAS_THREADS = """
+import pgc, ctypes, pathlib, numpy
+lib = next((pathlib.Path(numpy.__file__).parent.parent / "numpy.libs").glob("libscipy_openblas64_*.so"))
+print(ctypes.CDLL(str(lib)).scipy_openblas_get_num_threads64_())
+"""
+"""Prints the thread count of numpy's OpenBLAS (the pinned numpy wheel's own library) after ``import pgc``."""
+
+
+@pytest.mark.parametrize("given, expected", [(None, 1), ("2", 2)])
+def test_import_pgc_holds_numpy_s_blas_to_one_thread_unless_one_is_given(given, expected):
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    if given is not None:
+        env["OPENBLAS_NUM_THREADS"] = given
+    out = subprocess.run([sys.executable, "-c", OPENBLAS_THREADS], env=env, capture_output=True, text=True,
+                         check=True).stdout
+    assert int(out) == expected

@@ -19,6 +19,9 @@ from pgc.types import Camera, View
 OUTSIDE = 1e3
 """Field value (metres) of points behind a camera."""
 
+PARALLEL_POINTS = 1 << 16
+"""Points per thread below which the field is evaluated on one thread."""
+
 
 def mask_of(view: View) -> np.ndarray:
     """Boolean foreground of a view (mask >= 0.5, else segmentation != 0)."""
@@ -70,8 +73,20 @@ class SilhouetteField:
         """(N,) signed distance in metres (negative inside every view's silhouette).
 
         Beyond an image border the distance continues as the border's value plus the distance past it, so
-        the object must be inside every image (a capture dome); points behind a camera are outside."""
+        the object must be inside every image (a capture dome); points behind a camera are outside. Many
+        points are split between the allotted cores (each point's value is computed alone: the same bits)."""
+        from concurrent.futures import ThreadPoolExecutor
+
+        from pgc.cores import allotted_cores
+
         points = np.asarray(points, dtype=np.float64)
+        threads = min(allotted_cores(), len(points) // PARALLEL_POINTS)
+        if threads <= 1:
+            return self._distance(points)
+        with ThreadPoolExecutor(max_workers=threads) as pool:  # numpy releases the GIL
+            return np.concatenate(list(pool.map(self._distance, np.array_split(points, threads))))
+
+    def _distance(self, points: np.ndarray) -> np.ndarray:
         out = np.full(len(points), -np.inf)
         for cam, dist in zip(self.cameras, self.distances):
             uv, z = cam.project(points)

@@ -188,11 +188,18 @@ def consistency_filter(cameras: list[Camera], depths: list[np.ndarray], settings
 def depth_maps(views: list[View], hull_depths: list[np.ndarray], masks: list[np.ndarray], centre: np.ndarray,
                settings: StereoSettings = StereoSettings(), reporter: Reporter | None = None) -> list[np.ndarray]:
     """Filtered depth maps of every view (camera z, metres; 0 where invalid)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from pgc.cores import allotted_cores
+
     reporter = reporter or Reporter.silent()
-    raw = []
-    with reporter.stage("mesh.stereo", total=len(views)) as st:
-        for i in range(len(views)):
-            raw.append(sweep_depth(views, i, hull_depths[i], masks, settings, centre)[0])
+    with reporter.stage("mesh.stereo", total=len(views)) as st, \
+            ThreadPoolExecutor(max_workers=allotted_cores()) as pool:  # numpy and OpenCV release the GIL
+        futures = [pool.submit(sweep_depth, views, i, hull_depths[i], masks, settings, centre)
+                   for i in range(len(views))]
+        raw = []
+        for i, future in enumerate(futures):
+            raw.append(future.result()[0])
             st.progress(i + 1)
     with reporter.stage("mesh.stereo_consistency"):
         out = consistency_filter([v.camera for v in views], raw, settings, centre)
