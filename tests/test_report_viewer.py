@@ -151,6 +151,12 @@ class Chromium:
         os.close(self._out)
 
 
+TIMING_WARNINGS = ("rAF timed out in updateSource",)
+"""model-viewer's own timer, not a fault: after a load it waits 500 ms for two animation frames, then warns and goes
+on. Software WebGL on a busy machine (the other test worker) misses it; the load, the animation and the pixels are
+asserted apart."""
+
+
 @pytest.fixture
 def browser(tmp_path):
     b = Chromium(tmp_path / "profile")
@@ -211,7 +217,8 @@ def test_report_shows_the_garment_in_3d_offline(tiny_demo, browser, tmp_path):
 
     schemes = {u.split(":", 1)[0] for u in browser.requests()}
     assert schemes <= {"file", "blob", "data"}, browser.requests()
-    assert not browser.complaints(), browser.complaints()
+    complaints = [c for c in browser.complaints() if not any(t in c for t in TIMING_WARNINGS)]
+    assert not complaints, complaints
     print(f"3D view: loaded in {load_s:.1f} s, variance {shown:.0f} (empty viewer {blank:.1f}), "
           f"requests {sorted(schemes)}")
 
