@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
     failed = "".join(f"\nfailed: {k}: {v}" for k, v in result["failed"].items() if v != NOT_RUN)
     not_run = sum(v == NOT_RUN for v in result["failed"].values())
     failed += f"\nnot run: {not_run} tasks (run the sweep again to compute them)" if not_run else ""
-    emit(args, result["records"], text_table(result["records"], result["table"])
+    emit(args, result["records"], text_table(result["records"], result["table"], result["paired"])
          + f"\ntasks run: {result['computed']}  records: {result['out']}/sweep.json  page: {result['out']}/sweep.html"
          + failed)
     return 1 if any(v != NOT_RUN for v in result["failed"].values()) else 0

@@ -52,12 +52,14 @@ def run_sweep(path: str | os.PathLike, out: str | os.PathLike | None = None, sch
               reporter: Reporter | None = None, registry: Any = None, retries: int = 2,
               threads: int | None = None, collect: bool = False) -> dict[str, Any]:
     """Run the sweep file ``path`` into ``out`` (default ``runs/sweep-NAME``); returns ``{"records", "failed",
-    "computed", "out", "table"}`` (``computed``: how many tasks ran now; 0 on a rerun of a finished sweep;
-    ``table``: the file's :class:`~pgc.sweep.spec.Table`). ``collect``: run nothing, build the outputs from the
-    tasks finished so far (the others are listed in ``failed`` as :data:`NOT_RUN`)."""
+    "computed", "out", "table", "paired"}`` (``computed``: how many tasks ran now; 0 on a rerun of a finished
+    sweep; ``table``: the file's :class:`~pgc.sweep.spec.Table`; ``paired``: the cells of :mod:`pgc.sweep.paired`).
+    ``collect``: run nothing, build the outputs from the tasks finished so far (the others are listed in
+    ``failed`` as :data:`NOT_RUN`)."""
     from pgc.checks import naming_output
     from pgc.io.lock import FolderLock
-    from pgc.sweep.table import write_outputs
+    from pgc.sweep.paired import metric_directions, paired_cells
+    from pgc.sweep.table import metric_names, write_outputs
 
     sweep = load_sweep(path, registry)
     out = Path(out or f"runs/sweep-{sweep.name}")
@@ -69,6 +71,8 @@ def run_sweep(path: str | os.PathLike, out: str | os.PathLike | None = None, sch
             outcome = run_tasks(tasks, scheduler, reporter, retries=retries, threads=threads, name="sweep")
         results = done | outcome.results
         records = records_of(sweep, units, results, outcome.failed)
-        write_outputs(out, sweep.name, records, sweep.table, outcome.failed)
+        directions = metric_directions(metric_names(records, sweep.table), registry) if sweep.table.reference else {}
+        paired = paired_cells(records, sweep.table, directions)
+        write_outputs(out, sweep.name, records, sweep.table, outcome.failed, paired)
     return {"records": records, "failed": outcome.failed, "computed": len(outcome.results), "out": str(out),
-            "table": sweep.table}
+            "table": sweep.table, "paired": paired}

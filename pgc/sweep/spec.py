@@ -30,7 +30,7 @@ VIEWS = (2, 1024)
 """The range of a synthetic scene's camera count (``views``: the preset's unless given)."""
 LOOSENESS = (0.01, 0.15)
 """The garment generator's range of clearance from the body, metres (``pgc synth --looseness``)."""
-TABLE_KEYS = {"rows", "columns", "metrics", "where"}
+TABLE_KEYS = {"rows", "columns", "metrics", "where", "reference"}
 TOP_KEYS = {"sweep", "scenes", "configurations", "table"}
 SCENE_RECORD_FIELDS = ("preset", "garment", "fabric", "seed", "framing", "detail", "fit", "looseness", "views")
 """A synthetic scene's keys as every record carries them (None where the scene left one to its preset)."""
@@ -65,6 +65,9 @@ class Table:
     """Metrics shown (default: every metric of the records)."""
     where: dict[str, list[Any]] = field(default_factory=dict)
     """Record field -> allowed values."""
+    reference: dict[str, Any] = field(default_factory=dict)
+    """One record field -> the value every other value of it is compared with, record by record
+    (:mod:`pgc.sweep.paired`); empty: no paired table."""
 
 
 @dataclass
@@ -358,4 +361,15 @@ def _table_spec(path: Path, table: dict[str, Any]) -> Table:
         if k not in RECORD_FIELDS:
             raise _fail(path, f"[table].where.{k}", f"unknown field; fields: {', '.join(RECORD_FIELDS)}")
         spec.where[k] = v if isinstance(v, list) else [v]
+    reference = table.get("reference", {})
+    if not isinstance(reference, dict) or len(reference) > 1:
+        raise _fail(path, "[table].reference", 'give one field and its reference value, e.g. '
+                                               'reference = { variant = "hybrid" }')
+    for k, v in reference.items():
+        if k not in RECORD_FIELDS or k in ("scene", "seed"):
+            raise _fail(path, f"[table].reference.{k}", "give a field the records pair on: "
+                        + ", ".join(f for f in RECORD_FIELDS if f not in ("scene", "seed")))
+        if not isinstance(v, (str, int, float)) or isinstance(v, bool):
+            raise _fail(path, f"[table].reference.{k}", "give one value (a name or a number)")
+    spec.reference = dict(reference)
     return spec

@@ -72,13 +72,23 @@ def table_grid(records: list[dict[str, Any]], table: Table) -> tuple[list[str], 
     return head, grid
 
 
-def text_table(records: list[dict[str, Any]], table: Table) -> str:
-    head, grid = table_grid(records, table)
-    if not grid:
-        return "(no records)"
+def aligned(head: list[str], grid: list[list[str]]) -> str:
+    """A header and rows as plain-text columns."""
     widths = [max(len(h), *(len(g[i]) for g in grid)) for i, h in enumerate(head)]
     return "\n".join(["  ".join(h.ljust(w) for h, w in zip(head, widths))]
                      + ["  ".join(c.ljust(w) for c, w in zip(g, widths)) for g in grid])
+
+
+def text_table(records: list[dict[str, Any]], table: Table, paired: list[dict[str, Any]] | None = None) -> str:
+    """The table, then the paired comparison (:mod:`pgc.sweep.paired`) when there is one."""
+    from pgc.sweep.paired import PAIRED_CAPTION, paired_grid
+
+    head, grid = table_grid(records, table)
+    if not grid:
+        return "(no records)"
+    text = aligned(head, grid)
+    head, grid = paired_grid(paired or [])
+    return text + (f"\n\n{PAIRED_CAPTION}\n" + aligned(head, grid) if grid else "")
 
 
 def write_csv(path: Path, records: list[dict[str, Any]]) -> None:
@@ -155,11 +165,15 @@ def _plots(out: Path, records: list[dict[str, Any]], table: Table) -> list[str]:
 
 
 def write_outputs(out: Path, name: str, records: list[dict[str, Any]], table: Table,
-                  failed: dict[str, str]) -> None:
-    """``sweep.json`` (records), ``sweep.csv``, ``plots/*.png`` and ``sweep.html``."""
+                  failed: dict[str, str], paired: list[dict[str, Any]] | None = None) -> None:
+    """``sweep.json`` (records), ``sweep.csv``, ``plots/*.png``, ``sweep.html`` and, with a ``[table] reference``,
+    ``paired.json`` (the cells of :mod:`pgc.sweep.paired`)."""
     from pgc.io.atomic import finite_or_none, write_json, write_text
+    from pgc.sweep.paired import PAIRED_CAPTION, paired_grid
 
     write_json(out / "sweep.json", finite_or_none(records))
+    if table.reference:
+        write_json(out / "paired.json", finite_or_none(paired or []))
     write_csv(out / "sweep.csv", records)
     plots = _plots(out, records, table)
     head, grid = table_grid(records, table)
@@ -171,6 +185,12 @@ def write_outputs(out: Path, name: str, records: list[dict[str, Any]], table: Ta
              "records of the cell.</p><table><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]
     parts += ["<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in g) + "</tr>" for g in grid]
     parts.append("</table>")
+    paired_head, paired_rows = paired_grid(paired or [])
+    if paired_rows:
+        parts.append(f"<h2>Paired</h2><p>{html.escape(PAIRED_CAPTION)} (paired.json)</p><table><tr>"
+                     + "".join(f"<th>{html.escape(h)}</th>" for h in paired_head) + "</tr>")
+        parts += ["<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in g) + "</tr>" for g in paired_rows]
+        parts.append("</table>")
     parts += [f"<p><img src='{PLOTS}/{p}' alt='{html.escape(p)}'></p>" for p in plots]
     if failed:
         parts.append("<h2 class='fail'>failed tasks</h2><ul>" + "".join(
