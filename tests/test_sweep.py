@@ -240,6 +240,27 @@ def test_a_killed_worker_loses_only_its_task_which_is_retried(cluster, tmp_path)
     assert out.results["after"] == 2 + attempts[1] and out.results["other"] == 10
 
 
+def _logged(folder: str, key: str, *deps: object) -> str:
+    """Appends ``key`` to the folder's log when it starts, then works for 0.3 s."""
+    with open(Path(folder) / "started", "a") as f:
+        f.write(f"{key}\n")
+    time.sleep(0.3)
+    return key
+
+
+@pytest.mark.slow
+def test_the_cluster_runs_ready_tasks_by_priority(cluster, tmp_path):
+    # 'first' frees four low-priority tasks while ten high-priority tasks without dependencies still wait: a
+    # scheduler that queues the dependency-free tasks would start the freed ones ahead of them
+    low = [Task(f"low-{i}", _logged, (str(tmp_path), f"low-{i}"), ("first",), -1) for i in range(4)]
+    high = [Task(f"high-{i}", _logged, (str(tmp_path), f"high-{i}")) for i in range(10)]
+    first = Task("first", _logged, (str(tmp_path), "first"))
+    out = run_tasks([*low, first, *high], cluster.scheduler_address)
+    assert out.failed == {} and len(out.results) == 15
+    started = (tmp_path / "started").read_text().split()
+    assert sorted(started[:11]) == sorted(["first"] + [t.key for t in high])
+
+
 TINY = """
 [sweep]
 name = "t"

@@ -4,7 +4,8 @@ A task is ``Task(key, fn, args, deps)``: ``fn(*args, *results_of_deps)`` returns
 Without a scheduler the tasks run here in dependency order (as every other command runs). With one,
 ``"local:N"`` starts a :class:`distributed.LocalCluster` of N worker processes (one task at a time each,
 ``cores // N`` threads for its libraries) and ``"tcp://HOST:PORT"`` (or any address Dask accepts) uses an
-existing cluster. Each task is submitted with ``retries``; a worker that dies (killed, out of memory) loses
+existing cluster; the engine submits the ready tasks of highest priority, one per free worker thread, so
+priorities hold on a cluster as they do here. Each task is submitted with ``retries``; a worker that dies (killed, out of memory) loses
 only the tasks it was running, which the scheduler runs again elsewhere (Dask's ``allowed-failures``).
 A task whose retries are spent is reported as failed, and the tasks that need it are not run.
 
@@ -204,22 +205,41 @@ def connect(client_class: Any, address: Any, scheduler: str) -> Any:
 
 def _submit_all(client: Any, tasks: list[Task], reporter: Reporter, retries: int, threads: int | None,
                 name: str, as_completed: Any) -> Outcome:
+    """Submit the ready tasks of highest priority, one per free worker thread, and the next as each ends: the
+    engine, not Dask, decides the order. (Dask sends a task whose dependencies are done straight to a worker but
+    queues tasks without dependencies on the scheduler, so a capture would wait behind every run that became
+    ready before it, whatever the priorities.) Results travel as values: they are small."""
     out = Outcome()
-    futures: dict[str, Any] = {}
-    for t in _ordered(tasks):
-        futures[t.key] = client.submit(_PinnedCall(t.fn, threads), *t.args, *(futures[d] for d in t.deps),
-                                       key=t.key, retries=retries, pure=False, priority=t.priority)
-    by_future = {f.key: k for k, f in futures.items()}
-    deps = {t.key: t.deps for t in tasks}
+    rank = {t.key: i for i, t in enumerate(_ordered(tasks))}
+    waiting = sorted(tasks, key=lambda t: (-t.priority, rank[t.key]))
+    running: dict[str, str] = {}  # future key -> task key
+    finished = as_completed()
     with reporter.stage(name, total=len(tasks)) as st:
-        for future in as_completed(list(futures.values())):
-            key = by_future[future.key]
+        while waiting or running:
+            blocked = True
+            while blocked:  # a task that needs a failed one fails, and so do the tasks that need it
+                blocked = False
+                for t in list(waiting):
+                    bad = [d for d in t.deps if d in out.failed]
+                    if bad:
+                        out.failed[t.key] = f"needs failed task {bad[0]}"
+                        waiting.remove(t)
+                        blocked = True
+            slots = max(1, sum(client.nthreads().values()))
+            for t in [t for t in waiting if all(d in out.results for d in t.deps)][:max(0, slots - len(running))]:
+                future = client.submit(_PinnedCall(t.fn, threads), *t.args, *(out.results[d] for d in t.deps),
+                                       key=t.key, retries=retries, pure=False, priority=t.priority)
+                running[future.key] = t.key
+                finished.add(future)
+                waiting.remove(t)
+            if not running:
+                break
+            future = next(finished)
+            key = running.pop(future.key)
             if future.status == "finished":
                 out.results[key] = future.result()
             else:
-                bad = [d for d in deps[key] if d in out.failed]
-                out.failed[key] = f"needs failed task {bad[0]}" if bad else _describe(future.exception())
-            processing = sum(len(v) for v in client.processing().values())
+                out.failed[key] = _describe(future.exception())
             st.progress(len(out.results) + len(out.failed), len(tasks), finished=len(out.results),
-                        running=processing, failed=len(out.failed))
+                        running=len(running), failed=len(out.failed))
     return out
