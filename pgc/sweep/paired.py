@@ -20,8 +20,7 @@ import math
 import statistics
 from typing import Any
 
-from pgc.sweep.spec import RECORD_FIELDS, Table
-from pgc.sweep.table import selected
+from pgc.sweep.spec import RECORD_FIELDS, Table, selected
 
 PAIRED_CAPTION = ("Paired against the reference: mean relative margin over the pairs (positive: the reference "
                   "better), (pairs it wins / pairs), then '>' or '<=' the reference's own spread between seeds.")

@@ -70,6 +70,11 @@ class Table:
     (:mod:`pgc.sweep.paired`); empty: no paired table."""
 
 
+def selected(records: list[dict[str, Any]], table: Table) -> list[dict[str, Any]]:
+    """The records that ``table.where`` admits."""
+    return [r for r in records if all(r.get(k) in v for k, v in table.where.items())]
+
+
 @dataclass
 class Sweep:
     path: Path

@@ -22,13 +22,9 @@ import statistics
 from pathlib import Path
 from typing import Any
 
-from pgc.sweep.spec import RECORD_FIELDS, Table
+from pgc.sweep.spec import RECORD_FIELDS, Table, selected
 
 PLOTS = "plots"
-
-
-def selected(records: list[dict[str, Any]], table: Table) -> list[dict[str, Any]]:
-    return [r for r in records if all(r.get(k) in v for k, v in table.where.items())]
 
 
 def metric_names(records: list[dict[str, Any]], table: Table) -> list[str]:
