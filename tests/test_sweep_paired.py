@@ -1,5 +1,6 @@
 """The sweep's paired comparison (``[table] reference``): margins signed by each metric's direction, pairs that
-differ only in the compared field, the reference's spread between seeds, the file's validation, and its outputs."""
+differ only in the compared field, the reference's spread between seeds, and the outputs (the file's validation of
+``reference`` is in test_sweep.py)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,6 @@ import json
 
 import pytest
 
-from pgc.errors import PGCConfigError
 from pgc.sweep.paired import margin, metric_directions, paired_cells, paired_grid
 from pgc.sweep.spec import Table
 
@@ -89,36 +89,6 @@ def test_paired_grid_reads_as_margin_wins_and_spread():
 def test_metric_directions_come_from_the_registered_metrics():
     directions = metric_directions(["psnr", "ssim", "lpips", "mesh_seconds"])
     assert directions == {"psnr": True, "ssim": True, "lpips": False}
-
-
-SWEEP = """
-[sweep]
-steps = ["reconstruct", "animate"]
-motions = ["goalpost"]
-[scenes.a]
-preset = "tiny"
-[configurations.base]
-[table]
-rows = ["configuration"]
-{reference}
-"""
-
-
-@pytest.mark.parametrize("reference, message", [
-    ('reference = { variant = "hybrid", light = "capture" }', "give one field and its reference value"),
-    ('reference = "hybrid"', "give one field and its reference value"),
-    ('reference = { seed = 0 }', "[table].reference.seed: give a field the records pair on"),
-    ('reference = { colour = "red" }', "[table].reference.colour"),
-    ('reference = { variant = ["hybrid"] }', "give one value"),
-])
-def test_a_bad_reference_is_refused_naming_file_and_key(tmp_path, reference, message):
-    from pgc.sweep.spec import load_sweep
-
-    path = tmp_path / "sw.toml"
-    path.write_text(SWEEP.format(reference=reference))
-    with pytest.raises(PGCConfigError) as exc:
-        load_sweep(path)
-    assert str(path) in str(exc.value) and message in str(exc.value)
 
 
 def test_the_outputs_carry_the_paired_table(tmp_path):
