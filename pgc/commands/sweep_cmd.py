@@ -12,8 +12,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "sweep", help="scenes x configurations on a Dask cluster (or here), gathered into one table",
         description="Run a sweep file: every (scene, configuration) becomes tasks (reconstruct; animate, render "
                     "and eval per motion). Configurations that differ only downstream share the upstream work. "
-                    "Writes OUT/sweep.json (records), OUT/sweep.csv, OUT/plots/ and OUT/sweep.html. A rerun "
-                    "resumes from OUT/results/ and the stage caches.",
+                    "Writes OUT/sweep.json (records), OUT/sweep.csv, OUT/plots/ and OUT/sweep.html, and with a "
+                    "[table] reference the paired table (OUT/paired.json: the reference against each other value, "
+                    "record by record). A rerun resumes from OUT/results/ and the stage caches.",
         epilog="format and shipped sweeps: docs/sweeps.md (examples/sweeps/*.toml)")
     p.add_argument("sweep", metavar="SWEEP.toml", help="the sweep file")
     p.add_argument("--scheduler", metavar="local:N | tcp://HOST:PORT",
