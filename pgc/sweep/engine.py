@@ -5,8 +5,9 @@ Without a scheduler the tasks run here in dependency order (as every other comma
 ``"local:N"`` starts a :class:`distributed.LocalCluster` of N worker processes (one task at a time each,
 ``cores // N`` threads for its libraries) and ``"tcp://HOST:PORT"`` (or any address Dask accepts) uses an
 existing cluster; the engine submits the ready tasks of highest priority, one per free worker thread, so
-priorities hold on a cluster as they do here. Each task is submitted with ``retries``; a worker that dies (killed, out of memory) loses
-only the tasks it was running, which the scheduler runs again elsewhere (Dask's ``allowed-failures``).
+priorities hold on a cluster as they do here. Each task is submitted with ``retries``; a worker that dies
+(killed, out of memory) loses only the tasks it was running, which the scheduler runs again elsewhere (Dask's
+``allowed-failures``).
 A task whose retries are spent is reported as failed, and the tasks that need it are not run.
 
 Thread pinning: every worker sets ``OMP_NUM_THREADS`` (and MKL/OpenBLAS), ``XLA_FLAGS
@@ -210,28 +211,27 @@ def _submit_all(client: Any, tasks: list[Task], reporter: Reporter, retries: int
     queues tasks without dependencies on the scheduler, so a capture would wait behind every run that became
     ready before it, whatever the priorities.) Results travel as values: they are small."""
     out = Outcome()
-    rank = {t.key: i for i, t in enumerate(_ordered(tasks))}
+    in_order = _ordered(tasks)
+    rank = {t.key: i for i, t in enumerate(in_order)}
     waiting = sorted(tasks, key=lambda t: (-t.priority, rank[t.key]))
     running: dict[str, str] = {}  # future key -> task key
     finished = as_completed()
     with reporter.stage(name, total=len(tasks)) as st:
         while waiting or running:
-            blocked = True
-            while blocked:  # a task that needs a failed one fails, and so do the tasks that need it
-                blocked = False
-                for t in list(waiting):
-                    bad = [d for d in t.deps if d in out.failed]
-                    if bad:
-                        out.failed[t.key] = f"needs failed task {bad[0]}"
-                        waiting.remove(t)
-                        blocked = True
+            for t in in_order:  # dependencies first: one pass fails a whole chain
+                bad = [d for d in t.deps if d in out.failed]
+                if bad and t.key not in out.failed and t.key not in out.results:
+                    out.failed[t.key] = f"needs failed task {bad[0]}"
+            waiting = [t for t in waiting if t.key not in out.failed]
             slots = max(1, sum(client.nthreads().values()))
-            for t in [t for t in waiting if all(d in out.results for d in t.deps)][:max(0, slots - len(running))]:
+            ready = [t for t in waiting if all(d in out.results for d in t.deps)][:max(0, slots - len(running))]
+            for t in ready:
                 future = client.submit(_PinnedCall(t.fn, threads), *t.args, *(out.results[d] for d in t.deps),
                                        key=t.key, retries=retries, pure=False, priority=t.priority)
                 running[future.key] = t.key
                 finished.add(future)
-                waiting.remove(t)
+            submitted = {t.key for t in ready}
+            waiting = [t for t in waiting if t.key not in submitted]
             if not running:
                 break
             future = next(finished)

@@ -20,12 +20,10 @@ import math
 import statistics
 from typing import Any
 
-from pgc.sweep.spec import RECORD_FIELDS, Table, selected
+from pgc.sweep.spec import RECORD_FIELDS, SEED_FIELDS, Table, selected
 
 PAIRED_CAPTION = ("Paired against the reference: mean relative margin over the pairs (positive: the reference "
                   "better), (pairs it wins / pairs), then '>' or '<=' the reference's own spread between seeds.")
-SEED_FIELDS = ("scene", "seed")
-"""A synthetic scene's name carries its seed (``-seed1``); its other fields name it without the seed."""
 
 
 def metric_directions(names: list[str], registry: Any = None) -> dict[str, bool]:
@@ -59,8 +57,8 @@ def _seed_spread(refs: list[dict[str, Any]], metric: str) -> tuple[float | None,
             continue
         key = tuple(r.get(f) for f in RECORD_FIELDS if f not in SEED_FIELDS)
         groups.setdefault(key, []).append(v)
-    spreads = [(max(vs) - min(vs)) / abs(statistics.fmean(vs)) for vs in groups.values()
-               if len(vs) > 1 and statistics.fmean(vs) != 0]
+    spreads = [(max(vs) - min(vs)) / abs(mean) for vs in groups.values()
+               if len(vs) > 1 and (mean := statistics.fmean(vs)) != 0]
     return (statistics.fmean(spreads) if spreads else None), len(spreads)
 
 

@@ -36,6 +36,9 @@ SCENE_RECORD_FIELDS = ("preset", "garment", "fabric", "seed", "framing", "detail
 """A synthetic scene's keys as every record carries them (None where the scene left one to its preset)."""
 RECORD_FIELDS = ("scene", "configuration", "motion", "light", "mode", "variant", *SCENE_RECORD_FIELDS)
 """Record fields a table may group or filter by."""
+SEED_FIELDS = ("scene", "seed")
+"""The fields that name a seed: a synthetic scene's name carries its seed (``-seed1``); records pair across
+neither, and the other fields name a scene without its seed."""
 
 
 @dataclass
@@ -371,9 +374,9 @@ def _table_spec(path: Path, table: dict[str, Any]) -> Table:
         raise _fail(path, "[table].reference", 'give one field and its reference value, e.g. '
                                                'reference = { variant = "hybrid" }')
     for k, v in reference.items():
-        if k not in RECORD_FIELDS or k in ("scene", "seed"):
+        if k not in RECORD_FIELDS or k in SEED_FIELDS:
             raise _fail(path, f"[table].reference.{k}", "give a field the records pair on: "
-                        + ", ".join(f for f in RECORD_FIELDS if f not in ("scene", "seed")))
+                        + ", ".join(f for f in RECORD_FIELDS if f not in SEED_FIELDS))
         if not isinstance(v, (str, int, float)) or isinstance(v, bool):
             raise _fail(path, f"[table].reference.{k}", "give one value (a name or a number)")
     spec.reference = dict(reference)

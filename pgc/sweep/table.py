@@ -22,6 +22,7 @@ import statistics
 from pathlib import Path
 from typing import Any
 
+from pgc.sweep.paired import PAIRED_CAPTION, paired_grid
 from pgc.sweep.spec import RECORD_FIELDS, Table, selected
 
 PLOTS = "plots"
@@ -77,8 +78,6 @@ def aligned(head: list[str], grid: list[list[str]]) -> str:
 
 def text_table(records: list[dict[str, Any]], table: Table, paired: list[dict[str, Any]] | None = None) -> str:
     """The table, then the paired comparison (:mod:`pgc.sweep.paired`) when there is one."""
-    from pgc.sweep.paired import PAIRED_CAPTION, paired_grid
-
     head, grid = table_grid(records, table)
     if not grid:
         return "(no records)"
@@ -160,12 +159,18 @@ def _plots(out: Path, records: list[dict[str, Any]], table: Table) -> list[str]:
     return names
 
 
+def _html_table(head: list[str], grid: list[list[str]]) -> str:
+    """A header and rows as an HTML table, escaped."""
+    return ("<table><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"
+            + "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in g) + "</tr>" for g in grid)
+            + "</table>")
+
+
 def write_outputs(out: Path, name: str, records: list[dict[str, Any]], table: Table,
                   failed: dict[str, str], paired: list[dict[str, Any]] | None = None) -> None:
     """``sweep.json`` (records), ``sweep.csv``, ``plots/*.png``, ``sweep.html`` and, with a ``[table] reference``,
     ``paired.json`` (the cells of :mod:`pgc.sweep.paired`)."""
     from pgc.io.atomic import finite_or_none, write_json, write_text
-    from pgc.sweep.paired import PAIRED_CAPTION, paired_grid
 
     write_json(out / "sweep.json", finite_or_none(records))
     if table.reference:
@@ -178,15 +183,11 @@ def write_outputs(out: Path, name: str, records: list[dict[str, Any]], table: Ta
              "td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}th{background:#eee}"
              ".fail{color:#a00}</style></head><body>", f"<h1>pgc sweep: {html.escape(name)}</h1>",
              f"<p>{len(records)} records (sweep.json, sweep.csv). Cells: mean ± sample standard deviation over the "
-             "records of the cell.</p><table><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]
-    parts += ["<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in g) + "</tr>" for g in grid]
-    parts.append("</table>")
+             "records of the cell.</p>", _html_table(head, grid)]
     paired_head, paired_rows = paired_grid(paired or [])
     if paired_rows:
-        parts.append(f"<h2>Paired</h2><p>{html.escape(PAIRED_CAPTION)} (paired.json)</p><table><tr>"
-                     + "".join(f"<th>{html.escape(h)}</th>" for h in paired_head) + "</tr>")
-        parts += ["<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in g) + "</tr>" for g in paired_rows]
-        parts.append("</table>")
+        parts += [f"<h2>Paired</h2><p>{html.escape(PAIRED_CAPTION)} (paired.json)</p>",
+                  _html_table(paired_head, paired_rows)]
     parts += [f"<p><img src='{PLOTS}/{p}' alt='{html.escape(p)}'></p>" for p in plots]
     if failed:
         parts.append("<h2 class='fail'>failed tasks</h2><ul>" + "".join(
