@@ -13,8 +13,9 @@ from pgc.geometry.hull import _axis_centre, check_views, pixel_footprint, visual
 from pgc.geometry.labels import vote_face_labels
 from pgc.geometry.raster import rasterize
 from pgc.geometry.stereo import StereoSettings, consistency_filter, sweep_depth
-from pgc.testing.capture_scenes import make_capture
-from pgc.types import Mesh, View
+from pgc.geometry.surface_nets import surface_nets
+from pgc.testing.capture_scenes import look_at, make_capture, render_view
+from pgc.types import BODY_LABEL, GARMENT_LABEL, Mesh, View
 
 
 @pytest.fixture(scope="module")
@@ -85,6 +86,37 @@ def test_label_vote_ignores_views_without_segmentation(scene):
     views = [View(v.camera, v.image, v.mask) for v in cap.views]
     labels, conf = vote_face_labels(gt.vertices, gt.faces, views, 3)
     assert (conf == 0).all() and np.isfinite(labels).all()
+
+
+def skirt_hull(legs: bool, spacing: float = 0.02) -> Mesh:
+    """What a visual hull makes of a skirt (radius 0.3 m, hem at y = 0.6 m): a closed drum whose floor spans the
+    hem, with (``legs``) two legs (body) coming out of the floor; everything above y = 0.59 m is garment."""
+    lo, hi = np.array([-0.45, -0.05, -0.45]), np.array([0.45, 1.35, 0.45])
+    n = np.ceil((hi - lo) / spacing).astype(int) + 1
+    p = np.stack(np.meshgrid(*[lo[i] + spacing * np.arange(n[i]) for i in range(3)], indexing="ij"), -1).reshape(-1, 3)
+    field = np.maximum(np.hypot(p[:, 0], p[:, 2]) - 0.3, np.maximum(0.6 - p[:, 1], p[:, 1] - 1.2))
+    for x in (-0.12, 0.12) if legs else ():
+        field = np.minimum(field, np.maximum(np.hypot(p[:, 0] - x, p[:, 2]) - 0.07, np.maximum(-p[:, 1], p[:, 1] - 0.7)))
+    v, f = surface_nets(field.reshape(n), lo, spacing)
+    return Mesh(v, f, face_labels=np.where(v[f].mean(1)[:, 1] > 0.59, GARMENT_LABEL, BODY_LABEL).astype(np.int32))
+
+
+@pytest.mark.parametrize("legs", [True, False], ids=["legs", "no-legs"])
+def test_label_vote_leaves_the_unseen_floor_under_a_skirt_to_the_body_it_borders(legs):
+    """Cameras above the hem never see the floor the hull spans across the skirt's opening. Beside the legs it is
+    body (no cloth spans a skirt's opening); with no body beside it, it is a patch of the garment no camera saw."""
+    mesh = skirt_hull(legs)
+    cameras = [look_at(np.array([2.5 * np.cos(e) * np.sin(a), 0.8 + 2.5 * np.sin(e), 2.5 * np.cos(e) * np.cos(a)]),
+                       np.array([0.0, 0.6, 0.0]), 64, 64, 45.0, f"c{i}")
+               for i, (e, a) in enumerate((e, a) for e in np.radians([5, 35]) for a in np.radians(np.arange(0, 360, 45)))]
+    views = [render_view(mesh, c) for c in cameras]
+    labels, conf = vote_face_labels(mesh.vertices, mesh.faces, views, 3)
+    centre, area = mesh.vertices[mesh.faces].mean(1), mesh.face_areas()
+    floor, wall = centre[:, 1] < 0.61, (centre[:, 1] > 0.65) & (mesh.face_labels == GARMENT_LABEL)
+    assert floor.sum() > 1000 and (conf[floor & (mesh.face_normals()[:, 1] < -0.99)] == 0).all()  # never seen
+    garment_share = lambda part: np.sum(area[part] * (labels[part] == GARMENT_LABEL)) / area[part].sum()  # noqa: E731
+    assert garment_share(wall) == 1.0
+    assert garment_share(floor) == (0.0 if legs else 1.0)
 
 
 def test_poisson_depth_of_no_points_is_a_clear_error():

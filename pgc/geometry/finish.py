@@ -242,7 +242,7 @@ def finish(vertices: np.ndarray, faces: np.ndarray, views: list[View], labels: d
     t2 = time.perf_counter()
     with reporter.stage("mesh.labels"):
         face_labels, confidence = vote_face_labels(v, f, views, max(labels) + 1, options.label_depth_tolerance_px,
-                                                   options.label_smooth_iterations)
+                                                   options.label_smooth_iterations, options.label_min_evidence)
     t3 = time.perf_counter()
     with reporter.stage("mesh.uv"):
         uv, face_uv = unwrap(v, f, options.uv_resolution, options.uv_padding)

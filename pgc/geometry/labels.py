@@ -3,9 +3,14 @@
 For every view, each face sample (centroid) that projects into the image, faces the camera and passes the
 depth test against the mesh's own z-buffer casts a vote for the segmentation label under it, weighted by the
 cosine between the face normal and the viewing ray; pixels on a label boundary vote with weight 0.1
-(segmentations bleed there). Background votes are ignored. Faces that no view sees take the label of their
-neighbours (iterated over the face adjacency), and a final majority filter over edge-adjacent faces removes
-isolated specks.
+(segmentations bleed there). Background votes are ignored.
+
+A face is unobserved when the views that see it on the person add up to less than one view facing it head-on
+(the sum of their cosines, whatever the pixel's label). An edge-connected region of unobserved faces that
+borders the body is body: the visual hull closes the cavities that no camera sees, such as the opening under a
+skirt between its hem and the legs, and no cloth spans them. The other unobserved faces take the label of their
+neighbours (iterated over the face adjacency): a patch no camera sees inside a garment stays garment. A final
+majority filter over edge-adjacent faces removes isolated specks.
 """
 
 from __future__ import annotations
@@ -13,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from pgc.geometry.raster import rasterize
-from pgc.types import BACKGROUND_LABEL, View
+from pgc.types import BACKGROUND_LABEL, BODY_LABEL, View
 
 
 def face_adjacency(faces: np.ndarray) -> np.ndarray:
@@ -49,11 +54,14 @@ def _boundary(seg: np.ndarray) -> np.ndarray:
 
 
 def vote_face_labels(vertices: np.ndarray, faces: np.ndarray, views: list[View], num_labels: int,
-                     depth_tolerance_px: float = 1.5, smooth_iterations: int = 2) -> tuple[np.ndarray, np.ndarray]:
-    """Labels (F,) int32 and vote confidence (F,) in [0, 1] (winning share of the votes; 0 if unseen).
+                     depth_tolerance_px: float = 1.5, smooth_iterations: int = 2,
+                     min_evidence: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Labels (F,) int32 and vote confidence (F,) in [0, 1] (winning share of the votes; 0 if unobserved).
 
     ``num_labels``: 1 + the largest segmentation id. ``depth_tolerance_px``: a face is visible when its
-    centroid lies within this many pixel footprints of the z-buffer depth.
+    centroid lies within this many pixel footprints of the z-buffer depth. ``min_evidence``: the vote weight a
+    face needs to count as observed: the sum of the cosines of the views that see it on the person (1: one view
+    facing it head-on).
     """
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
@@ -62,6 +70,7 @@ def vote_face_labels(vertices: np.ndarray, faces: np.ndarray, views: list[View],
     normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-30)
     votes = np.zeros((len(faces), num_labels))
+    evidence = np.zeros(len(faces))
     for view in views:
         if view.segmentation is None:
             continue
@@ -81,14 +90,31 @@ def vote_face_labels(vertices: np.ndarray, faces: np.ndarray, views: list[View],
         weight = cos[idx] * np.where(_boundary(view.segmentation)[yi, xi], 0.1, 1.0)
         keep = (lab != BACKGROUND_LABEL) & (lab < num_labels)
         np.add.at(votes, (idx[keep], lab[keep]), weight[keep])
+        np.add.at(evidence, idx[keep], cos[idx[keep]])
     total = votes.sum(1)
+    observed = (evidence >= min_evidence) & (total > 0)
     labels = votes.argmax(1)
-    confidence = np.divide(votes.max(1), total, out=np.zeros_like(total), where=total > 0)
+    confidence = np.divide(votes.max(1), total, out=np.zeros_like(total), where=observed)
     adjacency = face_adjacency(faces)
-    labels = _fill_unseen(labels, total > 0, adjacency, num_labels)
+    if BODY_LABEL < num_labels:
+        body = _unobserved_beside(BODY_LABEL, labels, observed, adjacency)
+        labels[body] = BODY_LABEL
+        observed = observed | body
+    labels = _fill_unseen(labels, observed, adjacency, num_labels)
     for _ in range(smooth_iterations):
         labels = _majority(labels, adjacency, num_labels)
     return labels.astype(np.int32), confidence
+
+
+def _unobserved_beside(label: int, labels: np.ndarray, observed: np.ndarray, adjacency: np.ndarray) -> np.ndarray:
+    """(F,) bool: the unobserved faces whose edge-connected unobserved region borders an observed ``label`` face."""
+    region = edge_components(~observed, adjacency)
+    borders = np.zeros(int(region.max(initial=-1)) + 1, bool)
+    for a, b in ((0, 1), (1, 0)):
+        src, dst = adjacency[:, a], adjacency[:, b]
+        touch = observed[src] & (labels[src] == label) & (region[dst] >= 0)
+        borders[region[dst[touch]]] = True
+    return (region >= 0) & borders[np.maximum(region, 0)]
 
 
 def _neighbour_counts(labels: np.ndarray, known: np.ndarray, adjacency: np.ndarray, num_labels: int) -> np.ndarray:

@@ -2,5 +2,5 @@
 
 from pgc.stages.declaration import Stage
 
-STAGE = Stage(name="mesh", command="reconstruct", version="3", inputs=("capture",), outputs=("mesh.npz",),
+STAGE = Stage(name="mesh", command="reconstruct", version="4", inputs=("capture",), outputs=("mesh.npz",),
               folder="ASSET/stages/mesh", role="reconstructor", events=("mesh.*",))
