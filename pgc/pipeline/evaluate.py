@@ -119,12 +119,13 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
     capture's true radiance and turned per frame), cached in ``RUN/gt/<ground_truth_key>`` with the light's
     public record (``light.json``); each frame is also kept across runs (:mod:`pgc.pipeline.truth_cache`).
     ``mode``: the truth garment on the run's geometry ('appearance') or simulated on its own ('independent', its
-    simulator found in ``registry``, default the installed plugins)."""
+    simulator found in ``registry``, default the installed plugins); either way kept as clear of the true body as
+    it rested (:func:`pgc.pipeline.transfer.clear_of_body`)."""
     from pgc.io.asset import read_asset
     from pgc.io.capture import read_capture
     from pgc.io.images import read_envmap
     from pgc.io.light_record import GT_LIGHT_FILE, capture_record, identity, public, rotation_at
-    from pgc.pipeline.transfer import embed, place
+    from pgc.pipeline.transfer import clear_of_body, embed, place, rest_clearance
     from pgc.pipeline.truth_cache import TruthFrameCache, light_at
     from pgc.synth.frames import GT_SAMPLER, GT_SAMPLES, render_frames
     from pgc.synth.ground_truth import read_ground_truth
@@ -162,6 +163,8 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
     else:
         embedding = embed(gt.garment.vertices, asset.garment)
         gt_garment, body_frames = np.stack([place(embedding, asset.garment, garment[t]) for t in frames]), body[frames]
+    clearance = rest_clearance(gt.garment.vertices, gt.body)
+    gt_garment = np.stack([clear_of_body(g, b, gt.body.faces, clearance) for g, b in zip(gt_garment, body_frames)])
     lights = [gt.light] * len(frames)
     if light["kind"] == "envmap":
         envmap = read_envmap(light.get("path") or light["file"])

@@ -2,7 +2,9 @@
 
 Used to give the ground-truth garment exactly the simulated motion of the reconstructed one, so that
 appearance is judged on matching geometry: each ground-truth vertex is tied to its closest point on the
-reconstructed rest garment (face, barycentrics, offset along the interpolated normal).
+reconstructed rest garment (face, barycentrics, offset along the interpolated normal). A surface carried along
+another one's motion can sink into a body the other one only touched; :func:`clear_of_body` keeps it as clear of
+the body as it rested.
 """
 
 from __future__ import annotations
@@ -12,8 +14,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from pgc.arrays import array_ops
-from pgc.sim.xpbd import closest_barycentric
+from pgc.sim.collision import candidate_corners, signed_distance, vertex_normals
+from pgc.sim.xpbd import closest_barycentric, closest_contact, push_out
 from pgc.types import Mesh
+
+CLEARANCE_M = 0.002
+"""The clearance from the body a carried point keeps (or less, if it rested closer), metres: at zero the body and
+the cloth share a surface and the body shows through in a render."""
+REACH_M = 0.03
+"""Points farther than this from the body are left alone (metres): far from the surface, which side of a thin limb a
+point is on is not reliable."""
+PASSES = 4
+"""Pushes at most (each to the tangent plane at the closest point, found again: in a concave fold one is not enough)."""
 
 
 @dataclass
@@ -60,3 +72,25 @@ def _interpolated_normals(mesh: Mesh, vertices: np.ndarray, face: np.ndarray, ba
     length = np.linalg.norm(n, axis=1, keepdims=True)
     return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
 
+
+
+def rest_clearance(points: np.ndarray, body: Mesh, clearance: float = CLEARANCE_M) -> np.ndarray:
+    """(N,) the clearance from ``body`` each of ``points`` keeps: its signed distance at rest (metres, negative
+    inside), at most ``clearance``."""
+    return np.minimum(signed_distance(np.asarray(points, np.float64), body.vertices, body.faces), clearance)
+
+
+def clear_of_body(points: np.ndarray, body_vertices: np.ndarray, body_faces: np.ndarray,
+                  clearance: np.ndarray) -> np.ndarray:
+    """``points`` (N, 3) pushed out along the body's normal wherever they are closer to the body surface than their
+    ``clearance`` (N,) metres (:func:`rest_clearance`); points farther than :data:`REACH_M` are left alone."""
+    ops = array_ops("numpy")
+    p, body = np.asarray(points, np.float64), np.asarray(body_vertices, np.float64)
+    normals = vertex_normals(body, body_faces)
+    for _ in range(PASSES):
+        contact = closest_contact(ops, p, body, normals, candidate_corners(p, body, body_faces, 16))
+        near = np.linalg.norm(p - contact.point, axis=1) < REACH_M
+        p, depth = push_out(ops, p, contact.point, contact.normal, near, clearance)
+        if depth.max(initial=0.0) < 1e-5:
+            break
+    return p

@@ -23,6 +23,6 @@ class EvalSettings(Options):
                                           "truth simulator over its defaults (empty: its own cloth)")
 
 
-STAGE = Stage(name="eval", command="eval", version="1", inputs=("render", "ground_truth"), outputs=("metrics.json",),
+STAGE = Stage(name="eval", command="eval", version="2", inputs=("render", "ground_truth"), outputs=("metrics.json",),
               folder="RUN/metrics.json", role="metric", roles=("metric", "scene_renderer"), settings=EvalSettings,
               events=("render_gt_frames", "eval"), cached=False)
