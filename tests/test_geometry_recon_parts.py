@@ -112,8 +112,9 @@ def test_label_vote_leaves_the_unseen_floor_under_a_skirt_to_the_body_it_borders
     views = [render_view(mesh, c) for c in cameras]
     labels, conf = vote_face_labels(mesh.vertices, mesh.faces, views, 3)
     centre, area = mesh.vertices[mesh.faces].mean(1), mesh.face_areas()
-    floor, wall = centre[:, 1] < 0.61, (centre[:, 1] > 0.65) & (mesh.face_labels == GARMENT_LABEL)
-    assert floor.sum() > 1000 and (conf[floor & (mesh.face_normals()[:, 1] < -0.99)] == 0).all()  # never seen
+    floor = (centre[:, 1] < 0.61) & (mesh.face_normals()[:, 1] < -0.99)  # its flat part; the rim's faces are seen
+    wall = (centre[:, 1] > 0.65) & (mesh.face_labels == GARMENT_LABEL)
+    assert floor.sum() > 900 and (conf[floor] == 0).all()
     garment_share = lambda part: np.sum(area[part] * (labels[part] == GARMENT_LABEL)) / area[part].sum()  # noqa: E731
     assert garment_share(wall) == 1.0
     assert garment_share(floor) == (0.0 if legs else 1.0)

@@ -5,8 +5,9 @@ depth test against the mesh's own z-buffer casts a vote for the segmentation lab
 cosine between the face normal and the viewing ray; pixels on a label boundary vote with weight 0.1
 (segmentations bleed there). Background votes are ignored.
 
-A face is unobserved when the views that see it on the person add up to less than one view facing it head-on
-(the sum of their cosines, whatever the pixel's label). An edge-connected region of unobserved faces that
+A face's evidence is the sum of the cosines of the views that see it on the person, whatever the pixel's label; a
+face is unobserved when its evidence is under 5 % of the median face's (a share, so that it holds for 4 views as
+for 128). An edge-connected region of unobserved faces that
 borders the body is body: the visual hull closes the cavities that no camera sees, such as the opening under a
 skirt between its hem and the legs, and no cloth spans them. The other unobserved faces take the label of their
 neighbours (iterated over the face adjacency): a patch no camera sees inside a garment stays garment. A final
@@ -55,13 +56,13 @@ def _boundary(seg: np.ndarray) -> np.ndarray:
 
 def vote_face_labels(vertices: np.ndarray, faces: np.ndarray, views: list[View], num_labels: int,
                      depth_tolerance_px: float = 1.5, smooth_iterations: int = 2,
-                     min_evidence: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+                     min_evidence: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
     """Labels (F,) int32 and vote confidence (F,) in [0, 1] (winning share of the votes; 0 if unobserved).
 
     ``num_labels``: 1 + the largest segmentation id. ``depth_tolerance_px``: a face is visible when its
-    centroid lies within this many pixel footprints of the z-buffer depth. ``min_evidence``: the vote weight a
-    face needs to count as observed: the sum of the cosines of the views that see it on the person (1: one view
-    facing it head-on).
+    centroid lies within this many pixel footprints of the z-buffer depth. ``min_evidence``: the share of the
+    median face's evidence (the sum of the cosines of the views that see it on the person) a face needs to count
+    as observed.
     """
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
@@ -92,7 +93,8 @@ def vote_face_labels(vertices: np.ndarray, faces: np.ndarray, views: list[View],
         np.add.at(votes, (idx[keep], lab[keep]), weight[keep])
         np.add.at(evidence, idx[keep], cos[idx[keep]])
     total = votes.sum(1)
-    observed = (evidence >= min_evidence) & (total > 0)
+    seen = evidence > 0
+    observed = seen & (evidence >= min_evidence * (np.median(evidence[seen]) if seen.any() else 0.0)) & (total > 0)
     labels = votes.argmax(1)
     confidence = np.divide(votes.max(1), total, out=np.zeros_like(total), where=observed)
     adjacency = face_adjacency(faces)

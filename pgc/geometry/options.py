@@ -22,9 +22,10 @@ class FinishOptions(Options):
     label_depth_tolerance_px: float = Field(1.5, gt=0.0, description="visibility test tolerance of the label "
                                                                        "vote, in pixel footprints")
     label_smooth_iterations: int = count(2, 0, 20, "majority-filter passes over face labels")
-    label_min_evidence: float = Field(1.0, ge=0.0, description=(
-        "vote weight a face needs to count as observed by the label vote (1: one view facing it head-on); an "
-        "unobserved region beside the body is body (the hull's closure of a garment's opening)"))
+    label_min_evidence: float = Field(0.05, ge=0.0, le=1.0, description=(
+        "share of the median face's evidence (the summed cosines of the views that see it) a face needs to count "
+        "as observed by the label vote; an unobserved region beside the body is body (the hull's closure of a "
+        "garment's opening)"))
     min_views: int = count(4, 2, MAX_VIEWS, "fewest views a capture must have")
 
 
