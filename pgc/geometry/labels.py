@@ -7,11 +7,11 @@ cosine between the face normal and the viewing ray; pixels on a label boundary v
 
 A face's evidence is the sum of the cosines of the views that see it on the person, whatever the pixel's label; a
 face is unobserved when its evidence is under 5 % of the median face's (a share, so that it holds for 4 views as
-for 128). An edge-connected region of unobserved faces that
-borders the body is body: the visual hull closes the cavities that no camera sees, such as the opening under a
-skirt between its hem and the legs, and no cloth spans them. The other unobserved faces take the label of their
-neighbours (iterated over the face adjacency): a patch no camera sees inside a garment stays garment. A final
-majority filter over edge-adjacent faces removes isolated specks.
+for 128). An edge-connected region of unobserved faces that borders the body is body: the visual hull closes the
+cavities that no camera sees, such as the opening under a skirt between its hem and the legs, and no cloth spans
+them. The other unobserved faces take the label of their neighbours (iterated over the face adjacency): a patch no
+camera sees inside a garment stays garment. A final majority filter over edge-adjacent faces removes isolated
+specks.
 """
 
 from __future__ import annotations
@@ -93,8 +93,8 @@ def vote_face_labels(vertices: np.ndarray, faces: np.ndarray, views: list[View],
         np.add.at(votes, (idx[keep], lab[keep]), weight[keep])
         np.add.at(evidence, idx[keep], cos[idx[keep]])
     total = votes.sum(1)
-    seen = evidence > 0
-    observed = seen & (evidence >= min_evidence * (np.median(evidence[seen]) if seen.any() else 0.0)) & (total > 0)
+    seen = evidence > 0  # some view saw the face on the person: it has votes
+    observed = seen & (evidence >= min_evidence * np.median(evidence[seen])) if seen.any() else seen
     labels = votes.argmax(1)
     confidence = np.divide(votes.max(1), total, out=np.zeros_like(total), where=observed)
     adjacency = face_adjacency(faces)

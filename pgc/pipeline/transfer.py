@@ -15,7 +15,7 @@ import numpy as np
 
 from pgc.arrays import array_ops
 from pgc.sim.collision import candidate_corners, signed_distance, vertex_normals
-from pgc.sim.xpbd import closest_barycentric, closest_contact, push_out
+from pgc.sim.xpbd import closest_barycentric, closest_contact, contact_mask, push_out
 from pgc.types import Mesh
 
 CLEARANCE_M = 0.002
@@ -26,6 +26,8 @@ REACH_M = 0.03
 point is on is not reliable."""
 PASSES = 4
 """Pushes at most (each to the tangent plane at the closest point, found again: in a concave fold one is not enough)."""
+SETTLED_M = 1e-5
+"""A pass that pushes no point farther than this (metres) is the last."""
 
 
 @dataclass
@@ -73,7 +75,6 @@ def _interpolated_normals(mesh: Mesh, vertices: np.ndarray, face: np.ndarray, ba
     return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
 
 
-
 def rest_clearance(points: np.ndarray, body: Mesh, clearance: float = CLEARANCE_M) -> np.ndarray:
     """(N,) the clearance from ``body`` each of ``points`` keeps: its signed distance at rest (metres, negative
     inside), at most ``clearance``."""
@@ -86,11 +87,11 @@ def clear_of_body(points: np.ndarray, body_vertices: np.ndarray, body_faces: np.
     ``clearance`` (N,) metres (:func:`rest_clearance`); points farther than :data:`REACH_M` are left alone."""
     ops = array_ops("numpy")
     p, body = np.asarray(points, np.float64), np.asarray(body_vertices, np.float64)
-    normals = vertex_normals(body, body_faces)
+    normals, every = vertex_normals(body, body_faces), np.ones(len(p))
     for _ in range(PASSES):
         contact = closest_contact(ops, p, body, normals, candidate_corners(p, body, body_faces, 16))
-        near = np.linalg.norm(p - contact.point, axis=1) < REACH_M
-        p, depth = push_out(ops, p, contact.point, contact.normal, near, clearance)
-        if depth.max(initial=0.0) < 1e-5:
+        p, depth = push_out(ops, p, contact.point, contact.normal, contact_mask(ops, p, contact, REACH_M, every),
+                            clearance)
+        if depth.max(initial=0.0) < SETTLED_M:
             break
     return p
