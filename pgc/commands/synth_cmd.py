@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from pgc.errors import PGCDataError
 
@@ -27,8 +27,10 @@ forms:
                                 renders the capture's ground-truth materials on new vertices
                                 (.npz files with key 'vertices' (T, V, 3), the topology of
                                 CAPTURE/ground_truth/garment.obj and body.obj) from the capture's cameras;
-                                writes OUT_DIR/frame_####.npz (color, alpha, garment_mask, segmentation)
-                                and one sRGB PNG per frame and camera
+                                writes OUT_DIR/frame_####.npz (color, alpha, garment_mask, segmentation,
+                                spp and noise per camera) and one sRGB PNG per frame and camera; sampled
+                                as pgc eval's truth: passes of [stages.eval] gt_spp samples until the
+                                garment's relative noise is gt_noise or gt_max_spp samples are spent
 
 presets: tiny (6 views, 64 px, seconds)
          default (the demo: 128 views at 192 px framing the garment; a striped cotton tee (the cotton fibre
@@ -100,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
     reporter = Reporter(registry.hook)
     cfg = load_config(args, registry)
     if frames:
-        return _render_frames(args, reporter, scene_renderer(cfg))
+        return _render_frames(args, reporter, scene_renderer(cfg), cfg.stage("eval"))
     from pgc.synth.generate import generate, get_preset
 
     preset = get_preset(args.preset, views=args.views, resolution=args.resolution, spp=args.spp,
@@ -118,11 +120,14 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _render_frames(args: argparse.Namespace, reporter: Reporter, renderer: SceneRenderer) -> int:
+def _render_frames(args: argparse.Namespace, reporter: Reporter, renderer: SceneRenderer, settings: Any) -> int:
+    """``render-frames``, sampled as ``pgc eval`` samples its truth (``settings``: the eval stage's; --spp
+    overrides the samples of a pass)."""
     from pgc.synth.frames import render_frames_files
 
     _, capture, garment, body, out = args.paths
-    written = render_frames_files(capture, garment, body, out, spp=args.spp, reporter=reporter, renderer=renderer)
+    written = render_frames_files(capture, garment, body, out, spp=args.spp or settings.gt_spp, reporter=reporter,
+                                  renderer=renderer, noise=settings.gt_noise, max_spp=settings.gt_max_spp)
     print(json.dumps({"frames": [str(p) for p in written]}, indent=2) if args.json else
           f"wrote {len(written)} frames to {out}")
     return 0

@@ -120,14 +120,16 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
     public record (``light.json``); each frame is also kept across runs (:mod:`pgc.pipeline.truth_cache`).
     ``mode``: the truth garment on the run's geometry ('appearance') or simulated on its own ('independent', its
     simulator found in ``registry``, default the installed plugins); either way kept as clear of the true body as
-    it rested (:func:`pgc.pipeline.transfer.clear_of_body`)."""
+    it rested (:func:`pgc.pipeline.transfer.clear_of_body`). Each view is rendered in passes of ``spp`` samples
+    until its garment's relative noise reaches ``[stages.eval] gt_noise`` or ``gt_max_spp`` samples
+    (:func:`pgc.synth.frames.converged_color`); a frame's 'spp' and 'noise' say what each view spent and reached."""
     from pgc.io.asset import read_asset
     from pgc.io.capture import read_capture
     from pgc.io.images import read_envmap
     from pgc.io.light_record import GT_LIGHT_FILE, capture_record, identity, public, rotation_at
     from pgc.pipeline.transfer import clear_of_body, embed, place, rest_clearance
     from pgc.pipeline.truth_cache import TruthFrameCache, light_at
-    from pgc.synth.frames import GT_SAMPLER, GT_SAMPLES, render_frames
+    from pgc.synth.frames import GT_SAMPLER, GT_SAMPLES, render_frames, sampling_tag
     from pgc.synth.ground_truth import read_ground_truth
     from pgc.synth.render import scene_renderer
     from pgc.types import Light
@@ -139,7 +141,9 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
         check_scene_renderer_light(renderer, light, cfg)
     key = ground_truth_key(run_dir, capture_dir, camera_names, cfg, identity(light, frames), mode)
     cache = run_dir / "gt" / key  # never a stale frame
-    paths = [cache / f"frame_{t:04d}_spp{spp}.npz" for t in frames]
+    settings = cfg.stage("eval")
+    sampling = sampling_tag(spp, settings.gt_noise, settings.gt_max_spp)
+    paths = [cache / f"frame_{t:04d}_{sampling}.npz" for t in frames]
     if all(p.is_file() for p in paths):
         return [dict(np.load(p)) for p in paths]
     meta = read_run(run_dir)
@@ -170,7 +174,7 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
         envmap = read_envmap(light.get("path") or light["file"])
         lights = [Light(gt.light.radiance, envmap=envmap, rotation_deg=rotation_at(light, t)) for t in frames]
     renderer = renderer or scene_renderer(cfg)
-    kept = TruthFrameCache.open(capture_dir, cfg.role_key("scene_renderer"), type(renderer), spp, GT_SAMPLES,
+    kept = TruthFrameCache.open(capture_dir, cfg.role_key("scene_renderer"), type(renderer), sampling, GT_SAMPLES,
                                 GT_SAMPLER)
     keys = [kept.key(gt_garment[i], body_frames[i], cameras, light_at(light, t), i) for i, t in enumerate(frames)]
     out = [kept.load(k) for k in keys]
@@ -178,7 +182,8 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
     if todo:
         rendered = render_frames(gt, gt_garment[todo], body_frames[todo], cameras, [lights[i] for i in todo],
                                  spp=spp, gt_samples=GT_SAMPLES, sampler=GT_SAMPLER, reporter=reporter,
-                                 renderer=renderer, frame_seeds=todo)
+                                 renderer=renderer, frame_seeds=todo, noise=settings.gt_noise,
+                                 max_spp=settings.gt_max_spp)
         for i, frame in zip(todo, rendered):
             kept.store(keys[i], frame)
             out[i] = frame
@@ -186,6 +191,16 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
         save_npz(p, **frame)
     write_json(cache / GT_LIGHT_FILE, public(light, frames))  # which light, for the report
     return out
+
+
+def truth_sampling(truth: list[dict[str, np.ndarray]], settings: Any) -> dict[str, Any]:
+    """What the truth's views spent and reached: samples per pass, noise target and most samples (the eval stage's
+    settings), the samples per frame and view and, with a noise target, the relative noise each view reached and
+    the largest (None: one pass, not measured)."""
+    noise = [[float(x) for x in f["noise"]] for f in truth] if all("noise" in f for f in truth) else None
+    return {"spp_per_pass": settings.gt_spp, "noise_target": settings.gt_noise, "max_spp": settings.gt_max_spp,
+            "spp": [[int(x) for x in f["spp"]] for f in truth], "noise": noise,
+            "largest_noise": max(max(row) for row in noise) if noise else None}
 
 
 @dataclass(frozen=True)
@@ -220,6 +235,7 @@ def compute_eval(ctx: StageContext[EvalInputs], folder: Path) -> tuple[dict[str,
         truth = synthetic_ground_truth(run_dir, capture, frames, meta["cameras"], cfg.stage("eval").gt_spp, cfg,
                                        reporter, light, inp.mode, inp.registry)
         targets = [(f["color"] * f["garment_mask"][..., None], f["garment_mask"]) for f in truth]
+        sampling = truth_sampling(truth, cfg.stage("eval"))
         if inp.mode == "independent":
             from pgc.pipeline.independent import truth_simulation
 
@@ -252,6 +268,8 @@ def compute_eval(ctx: StageContext[EvalInputs], folder: Path) -> tuple[dict[str,
                               "cameras": meta["cameras"], "kernel_size": meta.get("kernel_size"),
                               "light": public(light, frames), "mode": inp.mode, "body": run_body(run_dir),
                               "render_inputs": render_inputs(run_dir)}
+    if capture is not None:
+        result["truth_sampling"] = sampling
     if truth_figures is not None:
         result["truth_simulation"] = truth_figures
     for key, rows in per_frame.items():

@@ -6,7 +6,7 @@ scenes again in new folders. The truth is the grader, not the pipeline's work: k
 An entry is one frame, ``$PGC_CAPTURE_CACHE/frames/KEY.npz`` (the capture cache's folder; ``off`` turns both off),
 written under a temporary name and renamed when complete. Its key covers everything the render reads: the bytes of
 the capture's ``ground_truth/`` folder, the posed truth garment and body (their float64 bytes), the cameras, the light
-at that frame, the samples and the seed, the scene renderer (implementation, options, version) and the source of the
+at that frame, the sampling (samples a pass, noise target, most samples) and the seed, the scene renderer (implementation, options, version) and the source of the
 generator and of the renderer's package. Frames with equal keys are equal (Mitsuba's LLVM rendering is deterministic
 for a fixed seed), so frame 0 of every motion (the capture pose) is rendered once.
 """
@@ -54,16 +54,17 @@ class TruthFrameCache:
     """Key of the truth scene, the renderer and the sampling settings shared by every frame."""
 
     @classmethod
-    def open(cls, capture_dir: Path, renderer_key: Any, renderer_class: type, spp: int, gt_samples: int,
+    def open(cls, capture_dir: Path, renderer_key: Any, renderer_class: type, sampling: str, gt_samples: int,
              sampler: str) -> TruthFrameCache:
         """The cache of the truth of ``capture_dir`` rendered by the renderer of ``renderer_key`` (its
-        implementation, options and version) and ``renderer_class`` (whose package's source the key covers)."""
+        implementation, options and version) and ``renderer_class`` (whose package's source the key covers), sampled
+        as ``sampling`` says (:func:`pgc.synth.frames.sampling_tag`)."""
         root = frame_cache_root()
         if root is None:
             return cls(None, "")
         truth = file_key(Path(capture_dir) / "ground_truth")
-        return cls(root, content_key("truth-frame", truth, renderer_key, source_key(renderer_class), spp, gt_samples,
-                                     sampler))
+        return cls(root, content_key("truth-frame", truth, renderer_key, source_key(renderer_class), sampling,
+                                     gt_samples, sampler))
 
     def key(self, garment: np.ndarray, body: np.ndarray, cameras: list[Camera], light: dict[str, Any],
             seed: int) -> str:
