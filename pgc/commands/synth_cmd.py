@@ -5,13 +5,14 @@ from __future__ import annotations
 
 import argparse
 import json
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from pgc.errors import PGCDataError
 
 if TYPE_CHECKING:
     from pgc.events import Reporter
     from pgc.roles.scene_renderer import SceneRenderer
+    from pgc.stages.eval import EvalSettings
 
 USAGE = """\
 pgc synth OUT [--preset tiny|default|cotton|large|knit] [--garment tshirt|dress] [--fabric NAME]
@@ -120,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _render_frames(args: argparse.Namespace, reporter: Reporter, renderer: SceneRenderer, settings: Any) -> int:
+def _render_frames(args: argparse.Namespace, reporter: Reporter, renderer: SceneRenderer, settings: EvalSettings) -> int:
     """``render-frames``, sampled as ``pgc eval`` samples its truth (``settings``: the eval stage's; --spp
     overrides the samples of a pass)."""
     from pgc.synth.frames import render_frames_files

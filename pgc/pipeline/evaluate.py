@@ -193,7 +193,7 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
     return out
 
 
-def truth_sampling(truth: list[dict[str, np.ndarray]], settings: Any) -> dict[str, Any]:
+def truth_sampling(truth: list[dict[str, np.ndarray]], settings: eval_stage.EvalSettings) -> dict[str, Any]:
     """What the truth's views spent and reached: samples per pass, noise target and most samples (the eval stage's
     settings), the samples per frame and view and, with a noise target, the relative noise each view reached and
     the largest (None: one pass, not measured)."""
@@ -229,7 +229,7 @@ def compute_eval(ctx: StageContext[EvalInputs], folder: Path) -> tuple[dict[str,
     run_dir, gt, meta, frames, light = inp.run_dir, inp.gt, inp.meta, inp.frames, inp.light
     fix = f"run 'pgc render {run_dir}' (again)"
     metrics = cfg.roles["metric"].create_all()
-    truth_figures = None
+    truth_figures = sampling = None
     capture = synthetic_capture(gt)
     if capture is not None:
         truth = synthetic_ground_truth(run_dir, capture, frames, meta["cameras"], cfg.stage("eval").gt_spp, cfg,
@@ -268,7 +268,7 @@ def compute_eval(ctx: StageContext[EvalInputs], folder: Path) -> tuple[dict[str,
                               "cameras": meta["cameras"], "kernel_size": meta.get("kernel_size"),
                               "light": public(light, frames), "mode": inp.mode, "body": run_body(run_dir),
                               "render_inputs": render_inputs(run_dir)}
-    if capture is not None:
+    if sampling is not None:
         result["truth_sampling"] = sampling
     if truth_figures is not None:
         result["truth_simulation"] = truth_figures
