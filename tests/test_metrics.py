@@ -1,4 +1,4 @@
-"""Metrics psnr, ssim, fsim: analytic values, an independent SSIM (scikit-image), FSIM properties and piq."""
+"""Metrics psnr, psnr-exposure, ssim, fsim: analytic values, an independent SSIM (scikit-image), FSIM properties and piq."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.ndimage import gaussian_filter
 
-from pgc.errors import PGCDataError
+from pgc.errors import PGCConfigError, PGCDataError
 from pgc.io.images import linear_to_srgb, srgb_to_linear
 from pgc.metrics.common import mask_bbox
 from pgc.metrics.fsim import _block_average, downsample_factor
@@ -33,19 +33,19 @@ def shifted_in_display(image: np.ndarray, offset: float) -> np.ndarray:
     return srgb_to_linear(linear_to_srgb(image) + offset)
 
 
-@pytest.mark.parametrize("name", ["psnr", "ssim", "fsim"])
+@pytest.mark.parametrize("name", ["psnr", "psnr-exposure", "ssim", "fsim"])
 def test_identical_images_give_the_best_value(name):
     image = textured()
-    best = {"psnr": np.inf, "ssim": 1.0, "fsim": 1.0}[name]
+    best = {"psnr": np.inf, "psnr-exposure": np.inf, "ssim": 1.0, "fsim": 1.0}[name]
     assert metric(name)(image, image) == pytest.approx(best, abs=1e-12)
 
 
 def test_registered_with_their_direction():
     reg = default_registry()
-    for name in ("psnr", "ssim", "fsim", "lpips"):
+    for name in ("psnr", "psnr-exposure", "ssim", "fsim", "lpips"):
         impl = reg.get("metric", name)
         assert impl.available, impl.reason
-    assert all(reg.create("metric", n).higher_is_better for n in ("psnr", "ssim", "fsim"))
+    assert all(reg.create("metric", n).higher_is_better for n in ("psnr", "psnr-exposure", "ssim", "fsim"))
 
 
 @pytest.mark.parametrize("offset", [0.01, 0.05, 0.1])
@@ -268,3 +268,57 @@ def test_benchmark_script_runs_and_writes_records(tmp_path):
     for r in records:
         if "abs_diff_independent" in r["errors"]:
             assert r["errors"]["abs_diff_independent"] < 2e-3, r
+
+
+def test_psnr_exposure_of_a_constant_scale_error_matches_the_formula():
+    """Target c, prediction c (1 + e): scaled to the mid-grey g they are g and g (1 + e) whatever c is, so the
+    PSNR is -20 log10(srgb(g (1 + e)) - srgb(g))."""
+    g, e = 0.18, 0.1
+    expected = -20 * np.log10(float(linear_to_srgb(np.float64(g * (1 + e))) - linear_to_srgb(np.float64(g))))
+    for c in (0.02, 0.18, 0.6):
+        target = np.full((16, 16, 3), c)
+        assert metric("psnr-exposure")(target * (1 + e), target) == pytest.approx(expected, rel=1e-5)
+
+
+def test_psnr_exposure_does_not_depend_on_the_light_level():
+    """One relative error under a light 1, 10 and 100 times dimmer: plain sRGB PSNR rises as the light dims (by
+    more than 3 dB here), the exposure-normalised PSNR stays put."""
+    target = textured()
+    pred = shifted_in_display(target, 0.05)
+    plain = [metric("psnr")(k * pred, k * target) for k in (1.0, 0.1, 0.01)]
+    exposed = [metric("psnr-exposure")(k * pred, k * target) for k in (1.0, 0.1, 0.01)]
+    assert plain[1] > plain[0] + 3.0 and plain[2] > plain[1] + 3.0
+    assert exposed == pytest.approx([exposed[0]] * 3, rel=1e-6)
+
+
+def test_psnr_exposure_is_psnr_when_the_target_is_at_the_exposure():
+    target = textured()
+    target = target * (0.18 / target.mean())
+    pred = shifted_in_display(target, 0.03)
+    assert metric("psnr-exposure")(pred, target) == pytest.approx(metric("psnr")(pred, target), rel=1e-6)
+    assert metric("psnr-exposure", exposure=0.5)(pred, target) != pytest.approx(metric("psnr")(pred, target), rel=1e-3)
+
+
+def test_psnr_exposure_takes_the_mean_over_the_mask():
+    """Light outside the mask changes neither the scale nor the error."""
+    target = textured()
+    pred = shifted_in_display(target, 0.05)
+    mask = np.zeros(target.shape[:2], np.float32)
+    mask[:, :40] = 1.0
+    brighter = target.copy()
+    brighter[:, 40:] = 1.0
+    assert metric("psnr-exposure")(pred, brighter, mask) == pytest.approx(
+        metric("psnr-exposure")(pred, target, mask), rel=1e-9)
+
+
+def test_psnr_exposure_refuses_a_black_target_and_stays_finite_near_it():
+    from pgc.metrics.psnr import BLACK
+
+    pred = textured()
+    with pytest.raises(PGCDataError, match="black"):
+        metric("psnr-exposure")(pred, np.zeros_like(pred))
+    target = textured() * (2 * BLACK / textured().mean())  # barely above black: a factor of about 1e5
+    value = metric("psnr-exposure")(target * 1.2, target)
+    assert np.isfinite(value) and value == pytest.approx(metric("psnr-exposure")(textured() * 1.2, textured()), rel=1e-6)
+    with pytest.raises(PGCConfigError, match="option 'exposure'"):
+        metric("psnr-exposure", exposure=0.0)

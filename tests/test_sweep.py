@@ -97,6 +97,35 @@ def test_sweeps_take_shipped_and_file_clips(tmp_path):
     assert [r.rsplit("-", 1)[0] for r in runs] == ["a-cmu-02_01", "a-run"]  # no ':' in a folder name
 
 
+def test_a_result_counts_only_with_its_folder(tmp_path):
+    """A rerun skips a task whose result is on record only while the folder it wrote exists: a scene renamed
+    between runs keeps its task keys but not its folders, and must not send later tasks to missing folders."""
+    from pgc.sweep.spec import load_sweep
+    from pgc.sweep.work import plan, result_path
+
+    sweep = load_sweep(_write(tmp_path, GOOD.replace('steps = ["reconstruct", "animate"]',
+                                                     'steps = ["reconstruct", "animate", "render"]\nholdout_every = 2')))
+    out = tmp_path / "out"
+    tasks, _, done = plan(sweep, out)
+    assert [t.key.split("-")[0] for t in tasks] == ["capture", "split", "asset", "run"] and not done
+    for t in tasks:
+        result_path(out, t.key).parent.mkdir(parents=True, exist_ok=True)
+        result_path(out, t.key).write_text("{}")
+    again, _, done = plan(sweep, out)
+    assert [t.key for t in again] == [t.key for t in tasks] and not done  # results without folders: all run again
+    folders = {"capture": [tasks[0].args[1]], "split": list(tasks[1].args[1:3]), "asset": [tasks[2].args[1]],
+               "run": [tasks[3].args[3]]}
+    for paths in folders.values():
+        for folder in paths:
+            Path(folder).mkdir(parents=True)
+    resumed, _, done = plan(sweep, out)
+    assert not resumed and set(done) == {t.key for t in tasks}
+    Path(folders["run"][0]).rmdir()
+    resumed, _, _ = plan(sweep, out)
+    assert [t.key for t in resumed] == [tasks[3].key]
+    assert plan(sweep, out, need_folders=False)[0] == []  # --collect tabulates the results alone
+
+
 def test_scene_lists_expand_into_named_scenes(tmp_path):
     from pgc.sweep.spec import load_sweep
 

@@ -58,7 +58,7 @@ def test_pbr_table_sweeps_expand_to_brdfs_x_fibre_fabrics_x_seeds(tmp_path, name
         assert asset.args[0].endswith(f"-train{sweep.holdout_every}")
         assert u.capture.endswith(f"-heldout{sweep.holdout_every}")
     t = sweep.table
-    assert t.where == {"variant": ["pbr_only"]} and t.metrics == ["psnr", "lpips"]
+    assert t.where == {"variant": ["pbr_only"]} and t.metrics == ["psnr", "psnr-exposure", "lpips"]
     assert t.rows == ["configuration", "light"] and t.columns == ["fabric"]
 
 
@@ -75,7 +75,7 @@ def test_ablation_sweeps_expand_to_scenes_x_seeds_x_motions_in_both_modes(tmp_pa
     assert set(sweep.lights) == {"capture"} | NOVEL_LIGHTS
     assert sweep.modes == ["appearance", "independent"] and sweep.holdout_every == 0
     (conf,) = sweep.configurations
-    assert {"psnr", "ssim", "fsim", "lpips"} <= {i.name for i in conf.cfg.roles["metric"].implementations}
+    assert {"psnr", "psnr-exposure", "ssim", "fsim", "lpips"} <= {i.name for i in conf.cfg.roles["metric"].implementations}
     assert conf.cfg.roles["body_model"].name == "anny"
     assert len(units) == len(sweep.scenes) * len(sweep.motions)
     kinds = [t.key.split("-")[0] for t in tasks]
@@ -89,7 +89,7 @@ def test_ablation_sweeps_expand_to_scenes_x_seeds_x_motions_in_both_modes(tmp_pa
                for u in units)
     t = sweep.table
     assert t.rows == ["variant"] and t.columns == ["mode", "light"]
-    assert set(t.metrics) == {"psnr", "ssim", "fsim", "lpips"}
+    assert set(t.metrics) == {"psnr", "psnr-exposure", "ssim", "fsim", "lpips"}
 
 
 GOOD = """

@@ -1,10 +1,10 @@
-"""The ``metric`` role implementations psnr, ssim and fsim (numpy/scipy); lpips lives in the torch backend."""
+"""The ``metric`` role implementations psnr, psnr-exposure, ssim and fsim (numpy/scipy); lpips lives in the torch backend."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from pgc.builtin_plugins.specs_metrics import FSIMOptions, PSNROptions
+from pgc.builtin_plugins.specs_metrics import FSIMOptions, PSNRExposureOptions, PSNROptions
 from pgc.metrics.fsim import MIN_SIZE as FSIM_MIN_SIZE
 from pgc.metrics.fsim import fsim
 from pgc.metrics.psnr import psnr
@@ -20,6 +20,17 @@ class PSNRMetric(Metric):
 
     def compute(self, pred: np.ndarray, target: np.ndarray, mask: np.ndarray | None) -> float:
         return psnr(pred, target, mask, self.options.color_space)
+
+
+class PSNRExposureMetric(Metric):
+    """PSNR in dB after scaling both images so that the target's mean over the mask is ``exposure`` (linear):
+    higher is better; +inf for identical images."""
+
+    name = "psnr-exposure"
+    Options = PSNRExposureOptions
+
+    def compute(self, pred: np.ndarray, target: np.ndarray, mask: np.ndarray | None) -> float:
+        return psnr(pred, target, mask, self.options.color_space, self.options.exposure)
 
 
 class SSIMMetric(Metric):

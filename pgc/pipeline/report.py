@@ -33,6 +33,8 @@ FIGURES = "report"
 """Folder of the report's pictures, beside report.html."""
 STRIP = (("gt", "ground truth"), ("3dgs_only", "3DGS-only"), ("pbr_only", "PBR-only"), ("hybrid", "hybrid"))
 RELIGHT_FRAMES = 8
+PSNR_NAMES = ("psnr", "psnr-exposure")
+"""The PSNR metrics whose change from the capture light the lights table shows (dB)."""
 """Frames of a rotating-light run shown in its strip (spread over the rendered frames)."""
 
 
@@ -294,19 +296,19 @@ def _light_means(views: list[RunView]) -> dict[str, dict[str, float]] | None:
 
 
 def _lights_table(means: dict[str, dict[str, dict[str, float]]]) -> str:
-    """Variant x light: every metric (mean over motions), and the PSNR change from the capture light."""
+    """Variant x light: every metric (mean over motions), and the change of each PSNR (plain and at a fixed
+    exposure) from the capture light."""
     lights = list(means)
     names = list(next(iter(means.values()))["hybrid"])
     head = "".join(f"<th>{html.escape(light)} {html.escape(n)}</th>" for light in lights for n in names)
     base = means.get("capture")
-    delta_head = "".join(f"<th>{html.escape(light)} &Delta;PSNR</th>" for light in lights if light != "capture") \
-        if base and "psnr" in names else ""
+    deltas = [n for n in PSNR_NAMES if n in names] if base else []
+    novel = [light for light in lights if light != "capture"]
+    delta_head = "".join(f"<th>{html.escape(light)} &Delta;{html.escape(n)}</th>" for n in deltas for light in novel)
     rows = []
     for key, label in STRIP[1:]:
         cells = "".join(f"<td>{means[light][key][n]:.4f}</td>" for light in lights for n in names)
-        if delta_head:
-            cells += "".join(f"<td>{means[light][key]['psnr'] - base[key]['psnr']:+.2f} dB</td>"
-                             for light in lights if light != "capture")
+        cells += "".join(f"<td>{means[light][key][n] - base[key][n]:+.2f} dB</td>" for n in deltas for light in novel)
         rows.append(f"<tr><td>{html.escape(label)}</td>{cells}</tr>")
     return f"<table><tr><th>variant</th>{head}{delta_head}</tr>{''.join(rows)}</table>"
 

@@ -141,7 +141,7 @@ def _pyplot():
 
 
 VARIANT_COLOURS = {"hybrid": "#1b7837", "3dgs_only": "#7b3294", "pbr_only": "#e08214"}
-HIGHER_IS_BETTER = {"psnr": True, "ssim": True, "fsim": True, "lpips": False}
+HIGHER_IS_BETTER = {"psnr": True, "psnr-exposure": True, "ssim": True, "fsim": True, "lpips": False}
 
 
 def metrics_chart(path: Path, per_motion: dict[str, dict[str, dict[str, float]]]) -> None:

@@ -64,7 +64,7 @@ def run_sweep(path: str | os.PathLike, out: str | os.PathLike | None = None, sch
     sweep = load_sweep(path, registry)
     out = Path(out or f"runs/sweep-{sweep.name}")
     with FolderLock(out, "pgc sweep"), naming_output(out):
-        tasks, units, done = plan(sweep, out)
+        tasks, units, done = plan(sweep, out, need_folders=not collect)
         if collect:
             outcome = Outcome(failed={t.key: NOT_RUN for t in tasks})
         else:

@@ -9,7 +9,8 @@ caches (:func:`seed_from`): the asset of the scene's first configuration, or the
 motion. The pipeline's own content keys then decide which stages are reused (e.g. mesh, splats and base colour
 when only the BRDF differs; the ground-truth renders when the simulation came out the same) and which are
 recomputed.
-``OUT/results/<task>.json``: each finished task's result; a rerun reads them and runs only what is missing.
+``OUT/results/<task>.json``: each finished task's result; a rerun reads them and runs only what is missing (a task
+whose result is on record but whose folder is not, as after a scene was renamed, runs again).
 
 With ``holdout_every`` k, each scene's capture is split into ``OUT/captures/<scene>-<key>-train<k>/`` (the views
 that reconstruct) and ``-heldout<k>/`` (every k-th view: the cameras the runs are rendered and evaluated from),
@@ -75,17 +76,20 @@ class Unit:
     """Evaluation mode -> the task whose result holds its metrics (``appearance``: the run task)."""
 
 
-def plan(sweep: Sweep, out: Path) -> tuple[list[Task], list[Unit], dict[str, Any]]:
-    """The tasks still to run, every unit of the sweep, and the results of tasks finished by an earlier run."""
+def plan(sweep: Sweep, out: Path, need_folders: bool = True) -> tuple[list[Task], list[Unit], dict[str, Any]]:
+    """The tasks still to run, every unit of the sweep, and the results of tasks finished by an earlier run
+    (with ``need_folders``, only those whose folders are still there: the later tasks read them)."""
     tasks: dict[str, Task] = {}
     done: dict[str, Any] = {}
     units: list[Unit] = []
 
-    def add(key: str, fn: Any, args: tuple, deps: list[str], priority: int = 0) -> str:
+    def add(key: str, fn: Any, args: tuple, deps: list[str], priority: int = 0, outputs: tuple[Path, ...] = ()) -> str:
+        """Plan task ``key`` unless it is planned or finished: a result on record (whose ``outputs``, the folders
+        it wrote, named by this sweep's scenes, still exist, with ``need_folders``)."""
         if key in tasks or key in done:
             return key
         cached = read_result(out, key)
-        if cached is not None:
+        if cached is not None and (not need_folders or all(Path(o).is_dir() for o in outputs)):
             done[key] = cached
             return key
         args = args + tuple(done[d] for d in deps if d in done)
@@ -102,7 +106,7 @@ def plan(sweep: Sweep, out: Path) -> tuple[list[Task], list[Unit], dict[str, Any
             if scene.synth is not None:
                 capture = out / "captures" / f"{scene.name}-{skey}"
                 cap_task = add(f"capture-{skey}", make_capture,
-                               (scene.synth, str(capture), conf.data, conf.source, str(out)), [])
+                               (scene.synth, str(capture), conf.data, conf.source, str(out)), [], outputs=(capture,))
                 cap_deps = [cap_task]
             else:
                 capture, cap_deps = scene.capture, []
@@ -113,7 +117,7 @@ def plan(sweep: Sweep, out: Path) -> tuple[list[Task], list[Unit], dict[str, Any
                 eval_capture = out / "captures" / f"{scene.name}-{skey}-heldout{k}"
                 split_key = f"split-{skey}-{k}"
                 cap_deps = [add(split_key, make_split, (str(capture), str(train), str(eval_capture), k, split_key,
-                                                        str(out)), cap_deps)]
+                                                        str(out)), cap_deps, outputs=(train, eval_capture))]
                 capture = train
             akey = content_key("asset", skey, asset_config_key(conf.cfg),
                                *((f"train{sweep.holdout_every}",) if sweep.holdout_every else ()))
@@ -121,7 +125,7 @@ def plan(sweep: Sweep, out: Path) -> tuple[list[Task], list[Unit], dict[str, Any
             donor = first_asset if first_asset and first_asset[0] != f"asset-{akey}" else None
             asset_task = add(f"asset-{akey}", make_asset,
                              (str(capture), str(asset), conf.data, conf.source, str(donor[1]) if donor else None,
-                              str(out)), cap_deps + ([donor[0]] if donor else []))
+                              str(out)), cap_deps + ([donor[0]] if donor else []), outputs=(asset,))
             first_asset = first_asset or (asset_task, asset)
             if "animate" not in sweep.steps:
                 units.append(Unit(scene, conf, None, str(capture), asset_task, None))
@@ -134,12 +138,12 @@ def plan(sweep: Sweep, out: Path) -> tuple[list[Task], list[Unit], dict[str, Any
                 run_task = add(f"run-{rkey}", make_run,
                                (str(asset), str(eval_capture), motion, str(run), conf.data, conf.source, sweep.steps,
                                 sweep.lights, str(rdonor[1]) if rdonor else None, str(out)),
-                               [asset_task] + ([rdonor[0]] if rdonor else []), priority(i, len(motions)))
+                               [asset_task] + ([rdonor[0]] if rdonor else []), priority(i, len(motions)), (run,))
                 first_run.setdefault(motion, (run_task, run))
                 modes = {m: run_task if m == "appearance" else
                          add(f"eval-{m}-{rkey}", make_mode_eval, (str(run), str(eval_capture), conf.data, conf.source,
                                                                   sweep.lights, m, str(out)), [run_task],
-                             priority(i, len(motions), mode_task=True))
+                             priority(i, len(motions), mode_task=True), (run,))
                          for m in (sweep.modes if "eval" in sweep.steps else ())}
                 units.append(Unit(scene, conf, motion_name, str(eval_capture), asset_task, run_task, modes))
     return list(tasks.values()), units, done
