@@ -410,3 +410,33 @@ def test_cluster_sweep_with_a_killed_worker_gives_the_in_process_records(tiny_sw
     # every core in-process), a retried task
     assert got == want
     assert all(math.isfinite(v) for r in got for v in r["metrics"].values())
+
+
+@pytest.mark.slow
+def test_a_changed_metric_evaluates_again_without_simulating_again(tiny_sweep):
+    """A downstream change (here one more metric, FSIM) gives every run a new key; each new run folder starts from the
+    earlier folder of its asset and motion, so the simulation and the ground truth's frames are reused (the
+    render is redone: the filter's kernel is chosen by a metric, so the metric list is among its settings)."""
+    from pgc.sweep.runner import run_sweep
+
+    path, out, first = tiny_sweep
+    changed = path.with_name("tiny-more-metrics.toml")
+    changed.write_text(path.read_text().replace("[configurations.four-views]", "[configurations.four-views]\n"
+                                                'metric = { use = ["psnr", "psnr-exposure", "ssim", "fsim", "lpips"] }')
+                       .replace("stages.render = { views = 1 }", "stages.render = { views = 1 }\n"
+                                'metric = { use = ["psnr", "psnr-exposure", "ssim", "fsim", "lpips"] }'))
+    again = run_sweep(changed, out)
+    assert again["failed"] == {} and again["computed"] == 2  # the two runs; capture and asset are shared
+    old_runs = {r["configuration"]: Path(r["run"]) for r in first["records"]}
+    for r in again["records"]:
+        new = Path(r["run"])
+        assert new != old_runs[r["configuration"]] and "fsim" in r["metrics"]
+        result = json.loads((out / "results" / f"run-{new.name.rsplit('-', 1)[1]}.json").read_text())
+        assert result["seeded"]
+        old = old_runs[r["configuration"]]
+        truth = sorted(p.relative_to(old) for p in (old / "gt").rglob("*.npz"))
+        assert truth and all((new / p).is_file() for p in truth)
+        for cache in ("stages/animate/stage.json", *truth):  # came with the earlier folder, not computed again
+            assert (new / cache).stat().st_mtime_ns == (old / cache).stat().st_mtime_ns
+    same = {(r["configuration"], r["light"], r["variant"]): r["metrics"]["psnr"] for r in first["records"]}
+    assert all(r["metrics"]["psnr"] == same[(r["configuration"], r["light"], r["variant"])] for r in again["records"])

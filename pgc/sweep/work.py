@@ -5,8 +5,9 @@
 key and the resolved configuration without the downstream tables :data:`DOWNSTREAM`), so configurations that
 differ only downstream share one asset. ``OUT/runs/<scene>-<motion>-<key>/``: one run folder per asset, motion and resolved configuration.
 A folder that another configuration's folder could partly reuse starts as a copy of that folder's stage
-caches (:func:`seed_from`): the asset of the scene's first configuration, or the scene's first run on the same
-motion. The pipeline's own content keys then decide which stages are reused (e.g. mesh, splats and base colour
+caches (:func:`seed_from`): the asset of the scene's first configuration, or a run folder of the same asset and
+motion that an earlier version of the sweep left (:func:`earlier_run`: a changed metric or eval setting then
+recomputes no simulation), else the scene's first run on the same motion. The pipeline's own content keys then decide which stages are reused (e.g. mesh, splats and base colour
 when only the BRDF differs; the ground-truth renders when the simulation came out the same) and which are
 recomputed.
 ``OUT/results/<task>.json``: each finished task's result; a rerun reads them and runs only what is missing (a task
@@ -96,6 +97,7 @@ def plan(sweep: Sweep, out: Path, need_folders: bool = True) -> tuple[list[Task]
         tasks[key] = Task(key, fn, args, tuple(d for d in deps if d not in done), priority)
         return key
 
+    earlier_names = earlier_configurations(out)
     root = sweep.path.parent
     motions = [str((root / m).resolve()) if (root / m).exists() else m for m in sweep.motions]
     for scene in sweep.scenes:
@@ -135,10 +137,13 @@ def plan(sweep: Sweep, out: Path, need_folders: bool = True) -> tuple[list[Task]
                 run = out / "runs" / f"{scene.name}-{Path(motion_name).stem.replace(':', '-')}-{rkey}"
                 rdonor = first_run.get(motion)
                 rdonor = rdonor if rdonor and rdonor[0] != f"run-{rkey}" else None
+                earlier = earlier_run(run, asset, motion, earlier_names.get(conf.name, set()))
+                donor_folder = earlier or (rdonor[1] if rdonor else None)
                 run_task = add(f"run-{rkey}", make_run,
                                (str(asset), str(eval_capture), motion, str(run), conf.data, conf.source, sweep.steps,
-                                sweep.lights, str(rdonor[1]) if rdonor else None, str(out)),
-                               [asset_task] + ([rdonor[0]] if rdonor else []), priority(i, len(motions)), (run,))
+                                sweep.lights, str(donor_folder) if donor_folder else None, str(out), conf.name),
+                               [asset_task] + ([rdonor[0]] if rdonor and not earlier else []),
+                               priority(i, len(motions)), (run,))
                 first_run.setdefault(motion, (run_task, run))
                 modes = {m: run_task if m == "appearance" else
                          add(f"eval-{m}-{rkey}", make_mode_eval, (str(run), str(eval_capture), conf.data, conf.source,
@@ -147,6 +152,38 @@ def plan(sweep: Sweep, out: Path, need_folders: bool = True) -> tuple[list[Task]
                          for m in (sweep.modes if "eval" in sweep.steps else ())}
                 units.append(Unit(scene, conf, motion_name, str(eval_capture), asset_task, run_task, modes))
     return list(tasks.values()), units, done
+
+
+def earlier_configurations(out: Path) -> dict[str, set[str]]:
+    """Configuration name -> the names of the run folders its finished run tasks wrote (from ``OUT/results``)."""
+    names: dict[str, set[str]] = {}
+    for path in sorted((Path(out) / "results").glob("run-*.json")):
+        result = read_result(out, path.stem)
+        if result and isinstance(result.get("configuration"), str) and isinstance(result.get("run"), str):
+            names.setdefault(result["configuration"], set()).add(Path(result["run"]).name)
+    return names
+
+
+def earlier_run(run: Path, asset: Path, motion: str, preferred: set[str]) -> Path | None:
+    """A run folder that an earlier version of the sweep left for the same asset and motion (same scene and motion
+    name, another key: a downstream setting such as the metrics or the eval's changed), whose stage caches seed
+    ``run``: one of the ``preferred`` folder names (the same configuration's) if any, else the first; None when
+    ``run`` exists or there is none."""
+    if run.exists() or not run.parent.is_dir():
+        return None
+    prefix = run.name.rsplit("-", 1)[0] + "-"
+    found = []
+    for folder in sorted(run.parent.glob(f"{prefix}*")):
+        if folder.name.rsplit("-", 1)[0] + "-" != prefix or not (folder / "run.json").is_file():
+            continue
+        try:
+            meta = read_json(folder / "run.json", "run metadata")
+        except PGCDataError:
+            continue
+        if isinstance(meta.get("asset"), str) and Path(meta["asset"]).resolve() == asset.resolve() \
+                and meta.get("motion") == motion:
+            found.append(folder)
+    return next((f for f in found if f.name in preferred), found[0] if found else None)
 
 
 def result_path(out: Path, key: str) -> Path:
@@ -290,10 +327,11 @@ def _link_capture(src: Path, dst: Path, dropped: set[str], doc: dict[str, Any]) 
 
 
 def make_run(asset: str, capture: str, motion: str, folder: str, data: dict[str, Any], source: str,
-             steps: list[str], lights: list[str], donor: str | None, out: str, *deps: Any) -> dict[str, Any]:
+             steps: list[str], lights: list[str], donor: str | None, out: str, configuration: str,
+             *deps: Any) -> dict[str, Any]:
     """Animate one asset on one motion, then render and evaluate it as ``steps`` say, under each of ``lights``
     (:data:`pgc.pipeline.relight.EVAL_LIGHTS`; novel lights in the run's relit runs, their environment maps in
-    ``OUT/lights/``). ``metrics``: light -> variant -> metric."""
+    ``OUT/lights/``). ``metrics``: light -> variant -> metric; ``configuration``: the sweep's name for ``data``."""
     from pgc.io.lock import FolderLock
     from pgc.motion.drive import EVALUATED_CLIP
     from pgc.pipeline.animate import animate
@@ -313,7 +351,7 @@ def make_run(asset: str, capture: str, motion: str, folder: str, data: dict[str,
                                      Path(out) / "lights", timings=seconds)
             if ev is not None:
                 metrics[name] = {v: {k: x for k, x in ev[v].items() if k != "per_frame"} for v in VARIANTS}
-    result = {"run": folder, "seeded": seeded, "seconds": seconds, "metrics": metrics}
+    result = {"run": folder, "configuration": configuration, "seeded": seeded, "seconds": seconds, "metrics": metrics}
     return _finish(out, f"run-{Path(folder).name.rsplit('-', 1)[1]}", result)
 
 
