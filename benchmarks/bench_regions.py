@@ -57,7 +57,7 @@ def main() -> None:
     records = []
     for run in map(Path, args.runs):
         meta, frames = rendered_frames(run)
-        truth = synthetic_ground_truth(run, gt, frames, meta["cameras"], cfg.stage("eval").gt_spp, cfg,
+        truth = synthetic_ground_truth(run, gt, frames, meta["cameras"], cfg,
                                        Reporter.silent())
         for i, t in enumerate(frames):
             with np.load(run / "render" / f"frame_{t:04d}.npz") as z:

@@ -244,7 +244,7 @@ def _scores(run: Path, light: dict | None) -> dict[str, dict[str, float]]:
     cfg = config.load(TINY_CONFIG)
     meta, frames = rendered_frames(run)
     capture = Path(json.loads((run / "run.json").read_text())["capture"])
-    truth = synthetic_ground_truth(run, capture, frames, meta["cameras"], cfg.stage("eval").gt_spp, cfg,
+    truth = synthetic_ground_truth(run, capture, frames, meta["cameras"], cfg,
                                    Reporter.silent(), light)
     metrics = {n: m for n, m in cfg.roles["metric"].create_all().items() if n in ("psnr", "lpips")}
     out: dict[str, dict[str, list[float]]] = {k: {n: [] for n in metrics} for k in VARIANTS}

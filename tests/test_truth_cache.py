@@ -93,7 +93,7 @@ def test_truth_frames_are_rendered_once_with_the_bytes_of_a_whole_sequence(tiny_
             shutil.copytree(run, mine, ignore=shutil.ignore_patterns("gt"))
             meta, frames = rendered_frames(mine)
             capture = Path(json.loads((mine / "run.json").read_text())["capture"])
-            truth = synthetic_ground_truth(mine, capture, frames, meta["cameras"], cfg.stage("eval").gt_spp, cfg,
+            truth = synthetic_ground_truth(mine, capture, frames, meta["cameras"], cfg,
                                            Reporter.silent())
             demo_truth = next(p for p in (run / "gt").iterdir() if (p / "light.json").is_file()
                               and json.loads((p / "light.json").read_text()) == {"kind": "capture"})

@@ -111,7 +111,7 @@ def check_scene_renderer_light(renderer: Any, record: dict[str, Any], cfg: RunCo
 
 
 def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], camera_names: list[str],
-                           spp: int, cfg: RunConfig, reporter: Reporter,
+                           cfg: RunConfig, reporter: Reporter,
                            light: dict[str, Any] | None = None, mode: str = "appearance",
                            registry: Any = None) -> list[dict[str, np.ndarray]]:
     """Ground-truth renders of the run's frames by ``cfg``'s scene renderer under ``light`` (a checked record of
@@ -120,8 +120,8 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
     public record (``light.json``); each frame is also kept across runs (:mod:`pgc.pipeline.truth_cache`).
     ``mode``: the truth garment on the run's geometry ('appearance') or simulated on its own ('independent', its
     simulator found in ``registry``, default the installed plugins); either way kept as clear of the true body as
-    it rested (:func:`pgc.pipeline.transfer.clear_of_body`). Each view is rendered in passes of ``spp`` samples
-    until its garment's relative noise reaches ``[stages.eval] gt_noise`` or ``gt_max_spp`` samples
+    it rested (:func:`pgc.pipeline.transfer.clear_of_body`). Each view is rendered in passes of
+    ``[stages.eval] gt_spp`` samples until its garment's relative noise reaches ``gt_noise`` or ``gt_max_spp`` samples
     (:func:`pgc.synth.frames.converged_color`); a frame's 'spp' and 'noise' say what each view spent and reached."""
     from pgc.io.asset import read_asset
     from pgc.io.capture import read_capture
@@ -142,7 +142,7 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
     key = ground_truth_key(run_dir, capture_dir, camera_names, cfg, identity(light, frames), mode)
     cache = run_dir / "gt" / key  # never a stale frame
     settings = cfg.stage("eval")
-    sampling = sampling_tag(spp, settings.gt_noise, settings.gt_max_spp)
+    sampling = sampling_tag(settings.gt_spp, settings.gt_noise, settings.gt_max_spp)
     paths = [cache / f"frame_{t:04d}_{sampling}.npz" for t in frames]
     if all(p.is_file() for p in paths):
         return [dict(np.load(p)) for p in paths]
@@ -181,7 +181,7 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
     todo = [i for i, frame in enumerate(out) if frame is None]  # frame i is seeded by i, as in the whole sequence
     if todo:
         rendered = render_frames(gt, gt_garment[todo], body_frames[todo], cameras, [lights[i] for i in todo],
-                                 spp=spp, gt_samples=GT_SAMPLES, sampler=GT_SAMPLER, reporter=reporter,
+                                 spp=settings.gt_spp, gt_samples=GT_SAMPLES, sampler=GT_SAMPLER, reporter=reporter,
                                  renderer=renderer, frame_seeds=todo, noise=settings.gt_noise,
                                  max_spp=settings.gt_max_spp)
         for i, frame in zip(todo, rendered):
@@ -232,7 +232,7 @@ def compute_eval(ctx: StageContext[EvalInputs], folder: Path) -> tuple[dict[str,
     truth_figures = sampling = None
     capture = synthetic_capture(gt)
     if capture is not None:
-        truth = synthetic_ground_truth(run_dir, capture, frames, meta["cameras"], cfg.stage("eval").gt_spp, cfg,
+        truth = synthetic_ground_truth(run_dir, capture, frames, meta["cameras"], cfg,
                                        reporter, light, inp.mode, inp.registry)
         targets = [(f["color"] * f["garment_mask"][..., None], f["garment_mask"]) for f in truth]
         sampling = truth_sampling(truth, cfg.stage("eval"))

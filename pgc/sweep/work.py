@@ -7,9 +7,9 @@ differ only downstream share one asset. ``OUT/runs/<scene>-<motion>-<key>/``: on
 A folder that another configuration's folder could partly reuse starts as a copy of that folder's stage
 caches (:func:`seed_from`): the asset of the scene's first configuration, or a run folder of the same asset and
 motion that an earlier version of the sweep left (:func:`earlier_run`: a changed metric or eval setting then
-recomputes no simulation), else the scene's first run on the same motion. The pipeline's own content keys then decide which stages are reused (e.g. mesh, splats and base colour
-when only the BRDF differs; the ground-truth renders when the simulation came out the same) and which are
-recomputed.
+recomputes no simulation), else the scene's first run on the same motion. The pipeline's own content keys then
+decide which stages are reused (e.g. mesh, splats and base colour when only the BRDF differs; the ground-truth
+renders when the simulation came out the same) and which are recomputed.
 ``OUT/results/<task>.json``: each finished task's result; a rerun reads them and runs only what is missing (a task
 whose result is on record but whose folder is not, as after a scene was renamed, runs again).
 
