@@ -1,4 +1,5 @@
-"""The ``metric`` role implementations psnr, psnr-exposure, ssim and fsim (numpy/scipy); lpips lives in the torch backend."""
+"""The ``metric`` role implementations psnr, psnr-exposure, ssim and fsim (numpy/scipy); lpips lives in the torch
+backend."""
 
 from __future__ import annotations
 

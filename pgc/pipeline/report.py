@@ -33,9 +33,9 @@ FIGURES = "report"
 """Folder of the report's pictures, beside report.html."""
 STRIP = (("gt", "ground truth"), ("3dgs_only", "3DGS-only"), ("pbr_only", "PBR-only"), ("hybrid", "hybrid"))
 RELIGHT_FRAMES = 8
+"""Frames of a rotating-light run shown in its strip (spread over the rendered frames)."""
 PSNR_NAMES = ("psnr", "psnr-exposure")
 """The PSNR metrics whose change from the capture light the lights table shows (dB)."""
-"""Frames of a rotating-light run shown in its strip (spread over the rendered frames)."""
 
 
 @dataclass
