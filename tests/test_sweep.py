@@ -59,6 +59,8 @@ def _write(tmp_path: Path, text: str) -> Path:
     ('preset = "tiny"', 'looseness = 0.5', "[scenes.a].looseness: 0.5: give the garment's clearance"),
     ('preset = "tiny"', 'looseness = "wide"', "[scenes.a].looseness: 'wide': give"),
     ('preset = "tiny"', 'looseness = true', "[scenes.a].looseness: True: give"),
+    ('preset = "tiny"', 'capture_light = "sunset"', "[scenes.a].capture_light: unknown capture_light 'sunset'; "
+                                                    "choose from uniform, sky-sun"),
 ])
 def test_bad_sweep_file_fails_before_any_work_naming_file_and_key(tmp_path, old, new, message):
     from pgc.sweep.runner import run_sweep
@@ -172,7 +174,28 @@ def test_make_capture_passes_the_scene_spec_as_pgc_synth_does(tmp_path, monkeypa
     assert calls[0] == (get_preset("knit", framing="body"), {"garment": None, "fabric": "fleece", "seed": 2,
                                                             "looseness": 0.03, "detail": "seams", "fit": "loose"})
     assert calls[1][0] == get_preset("knit") and calls[1][0].framing == "garment" and calls[1][1]["detail"] is None
+    assert "capture_light" not in calls[1][1]  # not given: the preset's, and the capture cache's key as before
     assert (tmp_path / "results" / "capture-abc.json").is_file()
+    make_capture(spec | {"capture_light": "sky-sun"}, str(tmp_path / "captures" / "k-sun"), {}, "(test)",
+                 str(tmp_path))  # `pgc synth ... --capture-light sky-sun`
+    assert calls[2][1]["capture_light"] == "sky-sun"
+
+
+def test_capture_light_names_scenes_and_records(tmp_path):
+    from pgc.sweep.runner import records_of
+    from pgc.sweep.spec import load_sweep
+    from pgc.sweep.work import plan
+
+    sweep = load_sweep(_write(tmp_path, GOOD.replace('preset = "tiny"',
+                                                     'preset = "tiny"\ncapture_light = ["uniform", "sky-sun"]')))
+    assert [s.name for s in sweep.scenes] == ["a-uniform", "a-sky-sun"]
+    assert [s.synth["capture_light"] for s in sweep.scenes] == ["uniform", "sky-sun"]
+    plain = load_sweep(_write(tmp_path, GOOD)).scenes[0]
+    assert "capture_light" not in plain.synth  # a scene without it keeps its key (and its cached capture)
+    tasks, units, _ = plan(sweep, tmp_path / "out")
+    assert len({t.key for t in tasks if t.key.startswith("capture-")}) == 2
+    records = records_of(sweep, units, {}, {t.key: "not run" for t in tasks})
+    assert {r["capture_light"] for r in records} == {"uniform", "sky-sun"}
 
 
 def _add(a: int, b: int, *deps: int) -> int:

@@ -22,7 +22,7 @@ from pgc.io.limits import read_toml
 STEPS = ("reconstruct", "animate", "render", "eval")
 """The steps in pipeline order; a sweep runs a prefix of them."""
 SWEEP_KEYS = {"name", "base", "config", "steps", "motions", "lights", "modes", "holdout_every"}
-SYNTH_KEYS = {"preset", "garment", "fabric", "seed", "framing", "detail", "fit", "looseness", "views"}
+SYNTH_KEYS = {"preset", "garment", "fabric", "seed", "framing", "detail", "fit", "looseness", "views", "capture_light"}
 SCENE_KEYS = SYNTH_KEYS | {"capture"}
 NUMERIC_KEYS = ("seed", "looseness", "views")
 """Synthetic-scene keys whose values name a varied scene with the key in front (``-seed3``, ``-looseness0.03``)."""
@@ -32,7 +32,8 @@ LOOSENESS = (0.01, 0.15)
 """The garment generator's range of clearance from the body, metres (``pgc synth --looseness``)."""
 TABLE_KEYS = {"rows", "columns", "metrics", "where", "reference"}
 TOP_KEYS = {"sweep", "scenes", "configurations", "table"}
-SCENE_RECORD_FIELDS = ("preset", "garment", "fabric", "seed", "framing", "detail", "fit", "looseness", "views")
+SCENE_RECORD_FIELDS = ("preset", "garment", "fabric", "seed", "framing", "detail", "fit", "looseness", "views",
+                       "capture_light")
 """A synthetic scene's keys as every record carries them (None where the scene left one to its preset)."""
 RECORD_FIELDS = ("scene", "configuration", "motion", "light", "mode", "variant", *SCENE_RECORD_FIELDS)
 """Record fields a table may group or filter by."""
@@ -45,8 +46,8 @@ neither, and the other fields name a scene without its seed."""
 class Scene:
     name: str
     synth: dict[str, Any] | None
-    """preset, garment, fabric, seed, framing of a synthetic scene, and detail, fit, looseness, views where the sweep
-    file gives them (None for a capture folder)."""
+    """preset, garment, fabric, seed, framing of a synthetic scene, and detail, fit, looseness, views, capture_light
+    where the sweep file gives them (None for a capture folder)."""
     capture: Path | None = None
 
 
@@ -260,16 +261,17 @@ def _scenes(path: Path, table: dict[str, Any]) -> list[Scene]:
     from pgc.synth.fabrics import FABRICS
     from pgc.synth.garments import FITS, GARMENTS
     from pgc.synth.generate import PRESETS
+    from pgc.synth.rig import CAPTURE_LIGHTS
 
     choices = {"preset": tuple(PRESETS), "garment": GARMENTS, "fabric": tuple(FABRICS), "framing": ("body", "garment"),
-               "detail": tuple(DETAILS), "fit": FITS}
+               "detail": tuple(DETAILS), "fit": FITS, "capture_light": CAPTURE_LIGHTS}
     out = []
     for name, spec in table.items():
         where = f"[scenes.{name}]"
         _check_name(path, where, name)
         if not isinstance(spec, dict):
             raise _fail(path, where, "must be a table (preset, garment, fabric, seed, framing, detail, fit, "
-                                     "looseness, views; or capture)")
+                                     "looseness, views, capture_light; or capture)")
         _unknown(path, where, spec, SCENE_KEYS)
         if "capture" in spec:
             if set(spec) & SYNTH_KEYS:
@@ -301,8 +303,8 @@ def _scenes(path: Path, table: dict[str, Any]) -> list[Scene]:
         varying = [k for k, v in lists.items() if len(v) > 1]
         for combo in itertools.product(*lists.values()):
             values = dict(zip(lists, combo))
-            # detail, fit, looseness and views enter the spec only when given, so the scene keys of sweeps without them
-            # (and their cached captures) stay as they were
+            # detail, fit, looseness, views and capture_light enter the spec only when given, so the scene keys of
+            # sweeps without them (and their cached captures) stay as they were
             synth = {"preset": "tiny", "garment": None, "fabric": None, "seed": 0, "framing": None} | values
             suffix = "".join(f"-{k}{values[k]}" if k in NUMERIC_KEYS else f"-{values[k]}" for k in varying)
             out.append(Scene(name + suffix, synth))

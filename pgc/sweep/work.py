@@ -222,8 +222,9 @@ def seed_from(donor: str | None, folder: Path) -> bool:
 def make_capture(synth: dict[str, Any], folder: str, data: dict[str, Any], source: str, out: str,
                  *deps: Any) -> dict[str, Any]:
     """Generate the synthetic capture of a scene spec (``preset``, ``garment``, ``fabric``, ``seed``, ``framing``,
-    and ``detail``, ``fit``, ``looseness``, ``views`` where given; a missing or None value keeps the preset's) with
-    the scene renderer of the configuration ``data``, as ``pgc synth --config`` does with the same options."""
+    and ``detail``, ``fit``, ``looseness``, ``views``, ``capture_light`` where given; a missing or None value keeps
+    the preset's) with the scene renderer of the configuration ``data``, as ``pgc synth --config`` does with the
+    same options."""
     from dataclasses import asdict
 
     from pgc.pipeline.capture_cache import cached_capture, generator_classes
@@ -234,6 +235,8 @@ def make_capture(synth: dict[str, Any], folder: str, data: dict[str, Any], sourc
     cfg = _config(data, source)
     preset = get_preset(synth["preset"], framing=synth.get("framing"), views=synth.get("views"))
     overrides = {k: synth.get(k) for k in ("garment", "fabric", "looseness", "detail", "fit")}
+    if synth.get("capture_light") is not None:  # only when given: the cache keys of other scenes stay as they were
+        overrides["capture_light"] = synth["capture_light"]
 
     def make(path: Path) -> None:
         generate(path, preset, seed=synth["seed"], renderer=scene_renderer(cfg), body_model=cfg.create("body_model"),
