@@ -97,7 +97,7 @@ def plan(sweep: Sweep, out: Path, need_folders: bool = True) -> tuple[list[Task]
         tasks[key] = Task(key, fn, args, tuple(d for d in deps if d not in done), priority)
         return key
 
-    earlier_names = earlier_configurations(out)
+    finished = finished_runs(out)
     root = sweep.path.parent
     motions = [str((root / m).resolve()) if (root / m).exists() else m for m in sweep.motions]
     for scene in sweep.scenes:
@@ -137,7 +137,7 @@ def plan(sweep: Sweep, out: Path, need_folders: bool = True) -> tuple[list[Task]
                 run = out / "runs" / f"{scene.name}-{Path(motion_name).stem.replace(':', '-')}-{rkey}"
                 rdonor = first_run.get(motion)
                 rdonor = rdonor if rdonor and rdonor[0] != f"run-{rkey}" else None
-                earlier = earlier_run(run, asset, motion, earlier_names.get(conf.name, set()))
+                earlier = earlier_run(run, asset, motion, finished, conf.name)
                 donor_folder = earlier or (rdonor[1] if rdonor else None)
                 run_task = add(f"run-{rkey}", make_run,
                                (str(asset), str(eval_capture), motion, str(run), conf.data, conf.source, sweep.steps,
@@ -154,27 +154,31 @@ def plan(sweep: Sweep, out: Path, need_folders: bool = True) -> tuple[list[Task]
     return list(tasks.values()), units, done
 
 
-def earlier_configurations(out: Path) -> dict[str, set[str]]:
-    """Configuration name -> the names of the run folders its finished run tasks wrote (from ``OUT/results``)."""
-    names: dict[str, set[str]] = {}
+def finished_runs(out: Path) -> dict[str, str | None]:
+    """Run folder name -> the configuration whose run task finished it (None where the result does not say),
+    from ``OUT/results``."""
+    names: dict[str, str | None] = {}
     for path in sorted((Path(out) / "results").glob("run-*.json")):
         result = read_result(out, path.stem)
-        if result and isinstance(result.get("configuration"), str) and isinstance(result.get("run"), str):
-            names.setdefault(result["configuration"], set()).add(Path(result["run"]).name)
+        if result and isinstance(result.get("run"), str):
+            configuration = result.get("configuration")
+            names[Path(result["run"]).name] = configuration if isinstance(configuration, str) else None
     return names
 
 
-def earlier_run(run: Path, asset: Path, motion: str, preferred: set[str]) -> Path | None:
-    """A run folder that an earlier version of the sweep left for the same asset and motion (same scene and motion
-    name, another key: a downstream setting such as the metrics or the eval's changed), whose stage caches seed
-    ``run``: one of the ``preferred`` folder names (the same configuration's) if any, else the first; None when
-    ``run`` exists or there is none."""
+def earlier_run(run: Path, asset: Path, motion: str, finished: dict[str, str | None],
+                configuration: str) -> Path | None:
+    """A finished run folder (one of ``finished``, :func:`finished_runs`) that an earlier version of the sweep left
+    for the same asset and motion (same scene and motion name, another key: a downstream setting such as the
+    metrics or the eval's changed), whose stage caches seed ``run``: the same configuration's if any, else the
+    first; None when ``run`` exists or there is none. Only finished folders: no task of this sweep writes them."""
     if run.exists() or not run.parent.is_dir():
         return None
     prefix = run.name.rsplit("-", 1)[0] + "-"
     found = []
     for folder in sorted(run.parent.glob(f"{prefix}*")):
-        if folder.name.rsplit("-", 1)[0] + "-" != prefix or not (folder / "run.json").is_file():
+        if folder.name not in finished or folder.name.rsplit("-", 1)[0] + "-" != prefix \
+                or not (folder / "run.json").is_file():
             continue
         try:
             meta = read_json(folder / "run.json", "run metadata")
@@ -183,7 +187,7 @@ def earlier_run(run: Path, asset: Path, motion: str, preferred: set[str]) -> Pat
         if isinstance(meta.get("asset"), str) and Path(meta["asset"]).resolve() == asset.resolve() \
                 and meta.get("motion") == motion:
             found.append(folder)
-    return next((f for f in found if f.name in preferred), found[0] if found else None)
+    return next((f for f in found if finished[f.name] == configuration), found[0] if found else None)
 
 
 def result_path(out: Path, key: str) -> Path:
