@@ -109,15 +109,19 @@ class RunConfig:
     def stage(self, name: str) -> Any:
         return self.stages[name]
 
-    def role_key(self, role: str) -> dict[str, Any]:
+    def role_key(self, role: str, name: str | None = None) -> dict[str, Any]:
         """What of the configuration decides a role's results (its implementation, options and the version of
-        the distribution providing it), for cache keys; name None when nothing is registered for the role."""
+        the distribution providing it), for cache keys: of the implementation ``name`` among the role's chosen
+        ones (a multi role such as ``metric`` has several), else of its first; name None when the role has
+        nothing registered or ``name`` is not among its chosen implementations."""
         choice = self.roles.get(role)
-        if choice is None:
+        impl = None if choice is None else choice.implementation if name is None else next(
+            (i for i in choice.implementations if i.name == name), None)
+        if impl is None:
             return {"role": role, "name": None}
-        opts = choice.options.get(choice.name)
-        return {"role": role, "name": choice.name, "options": None if opts is None else opts.model_dump(mode="json"),
-                "version": choice.implementation.version}
+        opts = choice.options.get(impl.name)
+        return {"role": role, "name": impl.name, "options": None if opts is None else opts.model_dump(mode="json"),
+                "version": impl.version}
 
     def check_implementations(self) -> None:
         """Check every chosen available implementation before any work (:func:`pgc.registry.check_implementation`:

@@ -73,6 +73,30 @@ def test_the_render_stage_owns_its_kernel_rule():
                        require_available=False)
 
 
+def test_the_render_key_holds_the_kernel_rule_metric_not_the_run_metric_list(tmp_path):
+    """The kernel rule scores with one metric: its options enter the render's key; the run's other metrics,
+    their number and order do not (adding a metric re-evaluates a run without rendering it again)."""
+    from pgc.events import Reporter
+    from pgc.pipeline.cache import StageCache
+    from pgc.pipeline.runner import StageContext, StageRunner
+
+    render = declared()["render"]
+
+    def key(data):
+        cfg = config.resolve(data, require_available=False)
+        runner = StageRunner(StageCache(tmp_path), StageContext(cfg, Reporter.silent(), None),
+                             {"run": "r", "asset": "a", "light": "l"})
+        return runner.key(render)
+
+    base = key({"metric": {"use": ["psnr", "lpips"]}})
+    assert key({"metric": {"use": ["fsim", "ssim", "lpips", "psnr-exposure", "psnr"]}}) == base
+    assert key({"metric": {"use": ["psnr", "lpips"], "lpips": {"net": "vgg"}}}) != base
+    error_rule = {"stages": {"render": {"kernel": {"mode": "error"}}}}
+    assert key({"metric": {"use": ["psnr", "lpips"]}, **error_rule}) == key({"metric": {"use": ["ssim"]},
+                                                                            **error_rule}) != base
+    assert render.key_roles(config.resolve({}, require_available=False).stage("render"))["metric"] == "lpips"
+
+
 def test_every_command_runs_exactly_its_declared_stages_in_order():
     from pgc.pipeline import animate, evaluate, reconstruct, render
 

@@ -438,8 +438,8 @@ def test_cluster_sweep_with_a_killed_worker_gives_the_in_process_records(tiny_sw
 @pytest.mark.slow
 def test_a_changed_metric_evaluates_again_without_simulating_again(tiny_sweep):
     """A downstream change (here one more metric, FSIM) gives every run a new key; each new run folder starts from the
-    earlier folder of its asset and motion, so the simulation and the ground truth's frames are reused (the
-    render is redone: the filter's kernel is chosen by a metric, so the metric list is among its settings)."""
+    earlier folder of its asset and motion, so the simulation, the render (the filter's kernel is chosen by
+    LPIPS alone, not by the list of metrics) and the ground truth's frames are reused."""
     from pgc.sweep.runner import run_sweep
 
     path, out, first = tiny_sweep
@@ -459,7 +459,7 @@ def test_a_changed_metric_evaluates_again_without_simulating_again(tiny_sweep):
         old = old_runs[r["configuration"]]
         truth = sorted(p.relative_to(old) for p in (old / "gt").rglob("*.npz"))
         assert truth and all((new / p).is_file() for p in truth)
-        for cache in ("stages/animate/stage.json", *truth):  # came with the earlier folder, not computed again
+        for cache in ("stages/animate/stage.json", "render/stage.json", *truth):  # came with the earlier folder
             assert (new / cache).stat().st_mtime_ns == (old / cache).stat().st_mtime_ns
     same = {(r["configuration"], r["light"], r["variant"]): r["metrics"]["psnr"] for r in first["records"]}
     assert all(r["metrics"]["psnr"] == same[(r["configuration"], r["light"], r["variant"])] for r in again["records"])

@@ -73,7 +73,7 @@ class StageRunner(Generic[I]):
             else:
                 raise KeyError(f"stage '{stage.name}' reads '{name}', which is neither a source given to the runner "
                                f"({', '.join(self.sources)}) nor a stage it ran")
-        roles = {role: self.ctx.cfg.role_key(role) for role in stage.key_roles(settings)}
+        roles = {role: self.ctx.cfg.role_key(role, name) for role, name in stage.key_roles(settings).items()}
         fingerprints = {role: getattr(self.ctx.implementation(role), "fingerprint", None)
                         for role in stage.fingerprint_roles}
         return content_key(stage.name, stage.version, inputs, roles, fingerprints, settings)

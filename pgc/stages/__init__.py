@@ -35,7 +35,8 @@ def stage_table(columns: tuple[str, ...] = PIPELINE_COLUMNS) -> list[str]:
         "command": lambda s: f"`pgc {s.command}`",
         "config table": lambda s: f"`{s.config_table}`",
         "role": lambda s: f"`{s.role}`" if s.role else "-",
-        "key roles": lambda s: ", ".join(f"`{r}`" for r in s.key_roles(s.settings() if s.settings else None)) or "-",
+        "key roles": lambda s: ", ".join(f"`{r}`" if n is None else f"`{r}` (`{n}`)"
+                                         for r, n in s.key_roles(s.settings() if s.settings else None).items()) or "-",
         "settings": lambda s: (f"`{s.settings.__module__}.{s.settings.__qualname__}`" if s.settings
                                else f"the {s.role}'s options"),
         "version": lambda s: s.version if s.cached else f"{s.version} (not cached)",

@@ -60,8 +60,9 @@ class Stage:
     """Roles whose choice (implementation, options, version) enters the cache key; default ``(role,)``."""
     settings: type[Options] | None = None
     """Its ``[stages.NAME]`` options model (None: it has none; its role's options configure it)."""
-    settings_roles: Callable[[Any], tuple[str, ...]] | None = None
-    """Roles that enter the key only under some settings: ``settings -> roles``."""
+    settings_roles: Callable[[Any], dict[str, str]] | None = None
+    """Implementations that enter the key only under some settings: ``settings -> {role: implementation}`` (one
+    implementation of a multi role, as the kernel rule's metric, not the role's whole list)."""
     fingerprint_roles: tuple[str, ...] = ()
     """Roles whose created implementation's ``fingerprint`` (e.g. model weights) enters the key."""
     check: SettingsCheck | None = None
@@ -71,10 +72,11 @@ class Stage:
     cached: bool = True
     """Whether it is stored by content key (an uncached stage is computed on every run)."""
 
-    def key_roles(self, settings: Any) -> tuple[str, ...]:
-        """The roles whose choice enters the cache key under ``settings``."""
+    def key_roles(self, settings: Any) -> dict[str, str | None]:
+        """The roles whose choice enters the cache key under ``settings``: role -> the implementation that counts
+        (None: the role's chosen one, the first of a multi role)."""
         base = self.roles or ((self.role,) if self.role else ())
-        return base + (self.settings_roles(settings) if self.settings_roles else ())
+        return {**dict.fromkeys(base), **(self.settings_roles(settings) if self.settings_roles else {})}
 
     @property
     def config_table(self) -> str:

@@ -50,9 +50,10 @@ class RenderSettings(Options):
         "per frame); the ratios are guarded where their denominator is near 0"))
 
 
-def metric_role(settings: RenderSettings) -> tuple[str, ...]:
-    """The kernel rule's mode 'metric' scores with the run's metric: its choice then decides the render."""
-    return ("metric",) if settings.kernel.mode == "metric" else ()
+def metric_role(settings: RenderSettings) -> dict[str, str]:
+    """The kernel rule's mode 'metric' scores with one of the run's metrics: that metric (its options and
+    version), not the run's list of metrics, then decides the render."""
+    return {"metric": settings.kernel.metric} if settings.kernel.mode == "metric" else {}
 
 
 def check_kernel_metric(settings: RenderSettings, given: dict[str, Any], roles: dict[str, RoleChoice],
