@@ -128,6 +128,33 @@ def test_a_result_counts_only_with_its_folder(tmp_path):
     assert plan(sweep, out, need_folders=False)[0] == []  # --collect tabulates the results alone
 
 
+def test_a_renamed_scene_seeds_its_new_folders_from_the_folders_on_record(tmp_path):
+    """A scene renamed in the sweep file keeps its task keys: its asset and run tasks run again into folders of
+    the new name, each seeded from the folder its finished task recorded, so no stage is computed again."""
+    import json
+
+    from pgc.sweep.spec import load_sweep
+    from pgc.sweep.work import plan, recorded_folder, result_path
+
+    out = tmp_path / "out"
+    tasks, _, _ = plan(load_sweep(_write(tmp_path, GOOD)), out)
+    capture, asset, run = tasks
+    recorded = {asset.key: {"asset": asset.args[1]}, run.key: {"run": run.args[3], "configuration": "base"}}
+    for t in tasks:
+        Path(t.args[1] if t is not run else t.args[3]).mkdir(parents=True)
+        result_path(out, t.key).parent.mkdir(parents=True, exist_ok=True)
+        result_path(out, t.key).write_text(json.dumps(recorded.get(t.key, {})))
+    renamed, _, done = plan(load_sweep(_write(tmp_path, GOOD.replace("[scenes.a]", "[scenes.b]"))), out)
+    assert [t.key for t in renamed] == [capture.key, asset.key, run.key] and not done
+    new_asset, new_run = renamed[1], renamed[2]
+    assert "/b-" in new_asset.args[1] and new_asset.args[4] == asset.args[1]  # seeded from the old asset
+    assert "/b-" in new_run.args[3] and new_run.args[8] == run.args[3]  # and from the old run
+    assert new_run.deps == (new_asset.key,)
+    Path(new_run.args[3]).mkdir(parents=True)  # a resumed task keeps its own folder: no donor then
+    assert recorded_folder(out, run.key, "run", Path(new_run.args[3])) is None
+    assert recorded_folder(out, run.key, "run", Path(run.args[3])) is None  # its own folder
+
+
 def test_scene_lists_expand_into_named_scenes(tmp_path):
     from pgc.sweep.spec import load_sweep
 
@@ -433,6 +460,29 @@ def test_cluster_sweep_with_a_killed_worker_gives_the_in_process_records(tiny_sw
     # every core in-process), a retried task
     assert got == want
     assert all(math.isfinite(v) for r in got for v in r["metrics"].values())
+
+
+@pytest.mark.slow
+def test_a_renamed_scene_computes_no_stage_again(tiny_sweep):
+    """Renaming the scene in the file reruns its capture (from the capture cache), asset and run tasks into new
+    folders, each seeded from the folder on record: every stage is reused and the metrics are the same."""
+    from pgc.sweep.runner import run_sweep
+
+    path, out, first = tiny_sweep
+    renamed = path.with_name("tiny-renamed.toml")
+    renamed.write_text(path.read_text().replace("[scenes.s]", "[scenes.s-renamed]"))
+    again = run_sweep(renamed, out)
+    assert again["failed"] == {} and again["computed"] == 4  # capture, asset, two runs
+    old = {(r["configuration"], r["light"], r["variant"]): r for r in first["records"]}
+    for r in again["records"]:
+        before = old[(r["configuration"], r["light"], r["variant"])]
+        assert r["metrics"] == before["metrics"]
+        for field, caches in (("asset", ("stages/mesh/stage.json", "stages/fit_splats/stage.json")),
+                              ("run", ("stages/animate/stage.json", "render/stage.json"))):
+            new_folder, old_folder = Path(r[field]), Path(before[field])
+            assert new_folder.name.startswith("s-renamed-") and new_folder != old_folder
+            for cache in caches:
+                assert (new_folder / cache).stat().st_mtime_ns == (old_folder / cache).stat().st_mtime_ns
 
 
 @pytest.mark.slow

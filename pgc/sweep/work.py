@@ -3,7 +3,8 @@
 ``OUT/captures/<scene>-<key>/``: a synthetic scene (key: its spec and the configuration's scene renderer).
 ``OUT/assets/<scene>-<key>/``: one asset per scene and *reconstruct-affecting* configuration (key: the scene's
 key and the resolved configuration without the downstream tables :data:`DOWNSTREAM`), so configurations that
-differ only downstream share one asset. ``OUT/runs/<scene>-<motion>-<key>/``: one run folder per asset, motion and resolved configuration.
+differ only downstream share one asset. ``OUT/runs/<scene>-<motion>-<key>/``: one run folder per asset, motion and
+resolved configuration.
 A folder that another configuration's folder could partly reuse starts as a copy of that folder's stage
 caches (:func:`seed_from`): the asset of the scene's first configuration, or a run folder of the same asset and
 motion that an earlier version of the sweep left (:func:`earlier_run`: a changed metric or eval setting then
@@ -11,7 +12,8 @@ recomputes no simulation), else the scene's first run on the same motion. The pi
 decide which stages are reused (e.g. mesh, splats and base colour when only the BRDF differs; the ground-truth
 renders when the simulation came out the same) and which are recomputed.
 ``OUT/results/<task>.json``: each finished task's result; a rerun reads them and runs only what is missing (a task
-whose result is on record but whose folder is not, as after a scene was renamed, runs again).
+whose result is on record but whose folder is not, as after a scene was renamed, runs again, its new folder seeded
+from the folder it recorded: :func:`recorded_folder`).
 
 With ``holdout_every`` k, each scene's capture is split into ``OUT/captures/<scene>-<key>-train<k>/`` (the views
 that reconstruct) and ``-heldout<k>/`` (every k-th view: the cameras the runs are rendered and evaluated from),
@@ -125,9 +127,11 @@ def plan(sweep: Sweep, out: Path, need_folders: bool = True) -> tuple[list[Task]
                                *((f"train{sweep.holdout_every}",) if sweep.holdout_every else ()))
             asset = out / "assets" / f"{scene.name}-{akey}"
             donor = first_asset if first_asset and first_asset[0] != f"asset-{akey}" else None
+            renamed = recorded_folder(out, f"asset-{akey}", "asset", asset)
+            asset_donor = str(renamed or donor[1]) if renamed or donor else None
             asset_task = add(f"asset-{akey}", make_asset,
-                             (str(capture), str(asset), conf.data, conf.source, str(donor[1]) if donor else None,
-                              str(out)), cap_deps + ([donor[0]] if donor else []), outputs=(asset,))
+                             (str(capture), str(asset), conf.data, conf.source, asset_donor, str(out)),
+                             cap_deps + ([donor[0]] if donor and not renamed else []), outputs=(asset,))
             first_asset = first_asset or (asset_task, asset)
             if "animate" not in sweep.steps:
                 units.append(Unit(scene, conf, None, str(capture), asset_task, None))
@@ -137,7 +141,8 @@ def plan(sweep: Sweep, out: Path, need_folders: bool = True) -> tuple[list[Task]
                 run = out / "runs" / f"{scene.name}-{Path(motion_name).stem.replace(':', '-')}-{rkey}"
                 rdonor = first_run.get(motion)
                 rdonor = rdonor if rdonor and rdonor[0] != f"run-{rkey}" else None
-                earlier = earlier_run(run, asset, motion, finished, conf.name)
+                earlier = recorded_folder(out, f"run-{rkey}", "run", run) or earlier_run(run, asset, motion, finished,
+                                                                                         conf.name)
                 donor_folder = earlier or (rdonor[1] if rdonor else None)
                 run_task = add(f"run-{rkey}", make_run,
                                (str(asset), str(eval_capture), motion, str(run), conf.data, conf.source, sweep.steps,
@@ -188,6 +193,17 @@ def earlier_run(run: Path, asset: Path, motion: str, finished: dict[str, str | N
                 and meta.get("motion") == motion:
             found.append(folder)
     return next((f for f in found if finished[f.name] == configuration), found[0] if found else None)
+
+
+def recorded_folder(out: Path, key: str, field: str, folder: Path) -> Path | None:
+    """The folder that task ``key`` wrote when it finished (its result's ``field``) if it is still there and is not
+    ``folder``: the same work under another name (the scene was renamed in the sweep file), whose stage caches
+    seed ``folder``. No task of the sweep writes it: the task of ``key`` now writes ``folder``."""
+    result = read_result(out, key)
+    recorded = result.get(field) if result else None
+    if not isinstance(recorded, str) or folder.exists() or Path(recorded).resolve() == folder.resolve():
+        return None
+    return Path(recorded) if Path(recorded).is_dir() else None
 
 
 def result_path(out: Path, key: str) -> Path:
