@@ -75,6 +75,38 @@ def test_ratio_detail_scales_the_capture_light_hybrid_by_the_far_fields_change(f
     np.testing.assert_array_equal(same.hybrid, compose(g, relit, filt, 9, detail="additive").hybrid)
 
 
+@pytest.mark.parametrize("filt", filters(), ids=lambda f: type(f).__name__)
+def test_residual_detail_keeps_the_relit_far_field_and_adds_the_near_fields_excess(filt):
+    """Far field S_c = A under the capture light and S = A * L under a novel light whose shading L has its own
+    fine detail (a bumpy surface lit from the side); near field G = S_c + D. The residual hybrid is S (its own
+    high band included) plus the near field's excess h(G) - h(S_c), scaled by l(S) / l(S_c); it is S itself when
+    G = S_c, and the additive hybrid under the capture light."""
+    rng = np.random.default_rng(5)
+    albedo = garment(rng, low=0.2)
+    shading = rng.uniform(0.3, 1.5, albedo.color.shape).astype(np.float32)
+    relit = RenderOutput(albedo.color * shading, albedo.alpha)
+    near = RenderOutput(albedo.color + 0.05 * albedo.alpha[..., None] * rng.standard_normal(albedo.color.shape)
+                        .astype(np.float32), albedo.alpha)
+    inside = albedo.alpha > 0.99
+    frame = compose(near, relit, filt, 9, detail="residual", far_capture=albedo)
+
+    def split(render):
+        colour = unpremultiply(render)
+        low = filt.lowpass(colour, render.alpha, 9)
+        return low, colour - low
+
+    (low_s, _), (low_c, high_c), (_, high_g) = split(relit), split(albedo), split(near)
+    gain = detail_gain(low_s, None, "residual", low_c)
+    expected = np.maximum(unpremultiply(relit) + gain * (high_g - high_c), 0)
+    np.testing.assert_allclose(frame.hybrid[inside], expected[inside], rtol=1e-4, atol=1e-5)
+    same = compose(albedo, relit, filt, 9, detail="residual", far_capture=albedo)
+    np.testing.assert_allclose(same.hybrid[inside], relit.color[inside], rtol=1e-5, atol=1e-6)
+    ratio = compose(albedo, relit, filt, 9, detail="ratio", far_capture=albedo)
+    assert np.abs(ratio.hybrid - relit.color)[inside].mean() > 0.05  # 'ratio' scales the capture's detail instead
+    np.testing.assert_array_equal(compose(near, albedo, filt, 9, detail="residual").hybrid,
+                                  compose(near, albedo, filt, 9, detail="additive").hybrid)
+
+
 def test_same_light_compares_radiance_map_and_rotation():
     env = np.ones((4, 8, 3), np.float32)
     assert same_light(Light(np.ones(3)), Light(np.ones(3)))
@@ -107,16 +139,18 @@ def hard_cases():
 
 @pytest.mark.parametrize("filt", filters(), ids=lambda f: type(f).__name__)
 @pytest.mark.parametrize("silhouette", ["near", "far"])
-@pytest.mark.parametrize("detail", ["multiplicative", "ratio"])
+@pytest.mark.parametrize("detail", ["multiplicative", "ratio", "residual"])
 @pytest.mark.parametrize("case", list(hard_cases()))
 def test_guarded_hybrids_are_finite_and_bounded_on_hard_cases(filt, silhouette, detail, case):
-    """The near field's render doubles as the capture-light far field of mode 'ratio' (its hard denominators)."""
+    """The near field's render doubles as the capture-light far field of modes 'ratio' and 'residual' (their
+    hard denominators)."""
     near, far = hard_cases()[case]
     frame = compose(near, far, filt, 7, silhouette=silhouette, outline_fade=1.0, detail=detail, far_capture=near)
     assert np.isfinite(frame.hybrid).all()
-    low_s = frame.low_far
-    # |l(S) + g h(G)| <= l(S) + MAX_GAIN |h(G)|, with h(G) of un-premultiplied colours in [0, 1]
-    assert (frame.hybrid <= low_s.max() + MAX_GAIN * 1.0 + 1e-5).all()
+    # l(S) + g h(G) <= max l(S) + MAX_GAIN |h(G)|, with h(G) of un-premultiplied colours in [0, 1]; 'residual'
+    # adds h(S) and takes g h(S_c) off: S + g (h(G) - h(S_c)) <= max S + 2 MAX_GAIN
+    bound = frame.low_far.max() + MAX_GAIN if detail != "residual" else unpremultiply(far).max() + 2 * MAX_GAIN
+    assert (frame.hybrid <= bound + 1e-5).all()
     assert (frame.hybrid >= 0).all()
 
 

@@ -137,6 +137,18 @@ def test_metric_rule_scores_are_the_metric_of_the_hybrid_on_the_garment(filt):
     assert choice.criterion == "metric:psnr" and np.isclose(choice.scores[9], expected, rtol=1e-6)
 
 
+def test_the_kernel_rules_score_the_residual_hybrid_as_the_additive_one_at_the_capture_light(filt):
+    """The rules score training frames, under the capture light, where detail 'residual' is 'additive'."""
+    from pgc.filtering.auto import hybrid_image
+
+    alpha, shading = garment()
+    image = shading + detail(6)
+    frame = TrainingFrame(image, image + 0.01, alpha, shading * 1.05 + 0.5 * detail(4), alpha)
+    for size in (3, 9, 21):
+        np.testing.assert_allclose(hybrid_image(filt, frame, size, "residual"),
+                                   hybrid_image(filt, frame, size, "additive"), atol=1e-6)
+
+
 def test_metric_rule_keeps_detail_the_far_field_lacks_and_drops_noise_it_does_not(filt):
     """I = shading + detail. A far field without the detail and an exact near field: every larger kernel
     hands more of the detail to the near field, so the largest size scores best. An exact far field and a

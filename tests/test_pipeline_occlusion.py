@@ -103,16 +103,17 @@ def _hybrid_renderer(far_source: str, detail: str = "multiplicative"):
     return HybridRenderer(asset, cfg)
 
 
+@pytest.mark.parametrize("detail", ["ratio", "residual"])
 @pytest.mark.parametrize("far_source", ["splats", "mesh"])
-def test_ratio_detail_renders_the_capture_light_far_field_under_a_novel_light_only(far_source):
-    """Detail 'ratio': under the capture light no second far field; under a light c times brighter the frame's
-    hybrid is c times the capture light's (every layer of a Lambertian garment scales with the light)."""
+def test_ratio_and_residual_detail_render_the_capture_light_far_field_under_a_novel_light_only(far_source, detail):
+    """Details 'ratio' and 'residual': under the capture light no second far field; under a light c times brighter
+    the frame's hybrid is c times the capture light's (every layer of a Lambertian garment scales with the light)."""
     pytest.importorskip("torch")
     pytest.importorskip("open3d")
     from pgc.pipeline.render import KernelDecision
     from pgc.types import Light
 
-    renderer = _hybrid_renderer(far_source, detail="ratio")
+    renderer = _hybrid_renderer(far_source, detail=detail)
     vertices, light = renderer.asset.garment.vertices, renderer.asset.light
     assert renderer.layers(vertices, CAMERA, light, far_source)["far_capture"] is None
     brighter = Light(light.radiance * 1.7)

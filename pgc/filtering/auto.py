@@ -125,10 +125,10 @@ def _sizes(sizes: list[int] | None, shape: tuple[int, ...]) -> list[int]:
 def hybrid_image(filt: Filter, frame: TrainingFrame, kernel_size: int, detail: str = "additive") -> np.ndarray:
     """The hybrid ``h(G) + l(S)`` of one frame at one kernel size (``detail``: :mod:`pgc.filtering.detail`),
     (H, W, 3) float32."""
-    near = np.asarray(frame.near, np.float32)
+    near, far = np.asarray(frame.near, np.float32), np.asarray(frame.far, np.float32)
     low_near = filt.lowpass(near, frame.near_alpha, kernel_size)
-    low_far = filt.lowpass(np.asarray(frame.far, np.float32), frame.far_alpha, kernel_size)
-    return hybrid_colour(near - low_near, low_near, low_far, detail)
+    low_far = filt.lowpass(far, frame.far_alpha, kernel_size)
+    return hybrid_colour(near - low_near, low_near, low_far, detail, high_far=far - low_far)
 
 
 def hybrid_error(filt: Filter, frame: TrainingFrame, kernel_size: int, detail: str = "additive") -> float:

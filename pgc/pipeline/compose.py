@@ -12,7 +12,8 @@
   (:func:`hide_behind`);
 - ``l``: the alpha-aware low-pass of the filter role, ``h = 1 - l``; with ``detail = 'multiplicative'`` the
   hybrid is ``l(S) G / l(G)`` instead, with ``'ratio'`` ``l(S) + h(G) l(S) / l(S_c)`` (``S_c`` the far field
-  under the capture light; :mod:`pgc.filtering.detail`).
+  under the capture light), with ``'residual'`` ``S + (h(G) - h(S_c)) l(S) / l(S_c)``
+  (:mod:`pgc.filtering.detail`).
 Compositing is done on un-premultiplied colours (render colour / alpha) so the alpha-aware blur sees the
 garment's own colour; the result is re-composited over the background with the alpha of the layer that
 gives the garment its shape (``silhouette``): ``'near'``, the Gaussians' alpha (the paper, where ``S_t`` is the
@@ -30,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pgc.filtering.detail import hybrid_colour
+from pgc.filtering.detail import CAPTURE_FAR_FIELD_MODES, hybrid_colour
 from pgc.geometry.raster import Raster
 from pgc.roles.filter import Filter
 from pgc.roles.splat_renderer import RenderOutput
@@ -165,9 +166,9 @@ def compose(near: RenderOutput, far: RenderOutput, filt: Filter, kernel_size: in
     'far'): within ``outline_fade * kernel_size`` px of the far field's outline the hybrid blends linearly
     into the far field itself (:func:`outline_weight`), so the outline band shows no near-field detail; 0
     turns it off. ``detail``: how the near field's high band enters, ``'additive'`` (``l(S) + h(G)``, the
-    paper), ``'multiplicative'`` (``l(S) G / l(G)``) or ``'ratio'`` (``l(S) + h(G) l(S) / l(S_c)``, with
-    ``far_capture`` the far field under the capture light; None: the render light is the capture light), see
-    :mod:`pgc.filtering.detail`."""
+    paper), ``'multiplicative'`` (``l(S) G / l(G)``), ``'ratio'`` (``l(S) + h(G) l(S) / l(S_c)``, with
+    ``far_capture`` the far field under the capture light; None: the render light is the capture light) or
+    ``'residual'`` (``S + (h(G) - h(S_c)) l(S) / l(S_c)``), see :mod:`pgc.filtering.detail`."""
     if silhouette not in ("near", "far"):
         raise ValueError(f"compose: silhouette must be 'near' or 'far', not {silhouette!r}")
     g, s = unpremultiply(near), unpremultiply(far)
@@ -175,10 +176,15 @@ def compose(near: RenderOutput, far: RenderOutput, filt: Filter, kernel_size: in
     high = g - low_near
     low = filt.lowpass(s, far.alpha, kernel_size)
     a, fa = near.alpha[..., None], far.alpha[..., None]
-    low_capture = None
-    if detail == "ratio" and far_capture is not None:
-        low_capture = filt.lowpass(unpremultiply(far_capture), far_capture.alpha, kernel_size)
-    colour = hybrid_colour(high if silhouette == "near" else a * high, low_near, low, detail, low_capture)
+    low_capture = high_far = high_capture = None
+    if detail in CAPTURE_FAR_FIELD_MODES and far_capture is not None:
+        s_capture = unpremultiply(far_capture)
+        low_capture = filt.lowpass(s_capture, far_capture.alpha, kernel_size)
+        high_capture = s_capture - low_capture
+    if detail == "residual":
+        high_far = s - low
+    colour = hybrid_colour(high if silhouette == "near" else a * high, low_near, low, detail, low_capture,
+                           high_far, high_capture)
     if silhouette == "far" and outline_fade > 0:
         weight = outline_weight(far.alpha, outline_fade * kernel_size)[..., None]
         colour = s + weight * (colour - s)

@@ -20,6 +20,7 @@ import numpy as np
 from pgc.config import RunConfig
 from pgc.errors import PGCDataError
 from pgc.events import Reporter
+from pgc.filtering.detail import CAPTURE_FAR_FIELD_MODES
 from pgc.geometry.raster import rasterize
 from pgc.io.atomic import write_json
 from pgc.pipeline.animate import read_run
@@ -99,9 +100,9 @@ class HybridRenderer:
                                            faces), camera), pbr
 
         far, pbr = far_field(light)
-        # detail 'ratio' under a novel light: the far field under the capture light too
+        # detail 'ratio' or 'residual' under a novel light: the far field under the capture light too
         far_capture = None
-        if self.settings.detail == "ratio" and not same_light(light, self.asset.light):
+        if self.settings.detail in CAPTURE_FAR_FIELD_MODES and not same_light(light, self.asset.light):
             far_capture = far_field(self.asset.light)[0]
         if hides is not None:  # the garment's first surface decides; beyond its silhouette, the splats' depth
             depth = np.where(np.isfinite(raster.depth), raster.depth, near.depth)

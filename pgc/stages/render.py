@@ -42,12 +42,14 @@ class RenderSettings(Options):
         "with silhouette 'far': the hybrid blends linearly into the far field over this many kernel widths "
         "inside the far field's outline (0: off, the paper's l(S) + h(G) up to the edge)"))
     body_occludes: bool = Field(True, description="the body hides the garment layers where it is in front")
-    detail: str = Field("multiplicative", pattern="^(additive|multiplicative|ratio)$", description=(
+    detail: str = Field("multiplicative", pattern="^(additive|multiplicative|ratio|residual)$", description=(
         "how the near field's detail enters the hybrid: 'additive' = l(S) + h(G) (the paper; the detail keeps its "
         "capture-light amplitude under any light), 'multiplicative' = l(S) G / l(G) (the detail scales with the far "
         "field's shading, so it follows a novel light), 'ratio' = l(S) + h(G) l(S) / l(S_c) with S_c the far field "
         "under the capture light (additive under the capture light; under another light a second far-field render "
-        "per frame); the ratios are guarded where their denominator is near 0"))
+        "per frame), 'residual' = S + (h(G) - h(S_c)) l(S) / l(S_c): the whole far field, its own high band relit, "
+        "plus the near field's detail beyond the far field's under the capture light (additive under the capture "
+        "light; the same second render); the ratios are guarded where their denominator is near 0"))
 
 
 def metric_role(settings: RenderSettings) -> dict[str, str]:
