@@ -79,8 +79,8 @@ def test_ratio_detail_scales_the_capture_light_hybrid_by_the_far_fields_change(f
 def test_residual_detail_keeps_the_relit_far_field_and_adds_the_near_fields_excess(filt):
     """Far field S_c = A under the capture light and S = A * L under a novel light whose shading L has its own
     fine detail (a bumpy surface lit from the side); near field G = S_c + D. The residual hybrid is S (its own
-    high band included) plus the near field's excess h(G) - h(S_c), scaled by l(S) / l(S_c); it is S itself when
-    G = S_c, and the additive hybrid under the capture light."""
+    high band included) plus l(S) (h(G) / l(G) - h(S_c) / l(S_c)); it is S itself when
+    G = S_c, and the multiplicative hybrid under the capture light."""
     rng = np.random.default_rng(5)
     albedo = garment(rng, low=0.2)
     shading = rng.uniform(0.3, 1.5, albedo.color.shape).astype(np.float32)
@@ -95,16 +95,16 @@ def test_residual_detail_keeps_the_relit_far_field_and_adds_the_near_fields_exce
         low = filt.lowpass(colour, render.alpha, 9)
         return low, colour - low
 
-    (low_s, _), (low_c, high_c), (_, high_g) = split(relit), split(albedo), split(near)
-    gain = detail_gain(low_s, None, "residual", low_c)
-    expected = np.maximum(unpremultiply(relit) + gain * (high_g - high_c), 0)
+    (low_s, _), (low_c, high_c), (low_g, high_g) = split(relit), split(albedo), split(near)
+    expected = np.maximum(unpremultiply(relit) + detail_gain(low_s, low_g, "multiplicative") * high_g
+                          - detail_gain(low_s, None, "ratio", low_c) * high_c, 0)
     np.testing.assert_allclose(frame.hybrid[inside], expected[inside], rtol=1e-4, atol=1e-5)
     same = compose(albedo, relit, filt, 9, detail="residual", far_capture=albedo)
     np.testing.assert_allclose(same.hybrid[inside], relit.color[inside], rtol=1e-5, atol=1e-6)
     ratio = compose(albedo, relit, filt, 9, detail="ratio", far_capture=albedo)
     assert np.abs(ratio.hybrid - relit.color)[inside].mean() > 0.05  # 'ratio' scales the capture's detail instead
     np.testing.assert_array_equal(compose(near, albedo, filt, 9, detail="residual").hybrid,
-                                  compose(near, albedo, filt, 9, detail="additive").hybrid)
+                                  compose(near, albedo, filt, 9, detail="multiplicative").hybrid)
 
 
 def test_same_light_compares_radiance_map_and_rotation():

@@ -137,8 +137,8 @@ def test_metric_rule_scores_are_the_metric_of_the_hybrid_on_the_garment(filt):
     assert choice.criterion == "metric:psnr" and np.isclose(choice.scores[9], expected, rtol=1e-6)
 
 
-def test_the_kernel_rules_score_the_residual_hybrid_as_the_additive_one_at_the_capture_light(filt):
-    """The rules score training frames, under the capture light, where detail 'residual' is 'additive'."""
+def test_the_kernel_rules_score_the_residual_hybrid_as_the_multiplicative_one_at_the_capture_light(filt):
+    """The rules score training frames, under the capture light, where detail 'residual' is 'multiplicative'."""
     from pgc.filtering.auto import hybrid_image
 
     alpha, shading = garment()
@@ -146,7 +146,7 @@ def test_the_kernel_rules_score_the_residual_hybrid_as_the_additive_one_at_the_c
     frame = TrainingFrame(image, image + 0.01, alpha, shading * 1.05 + 0.5 * detail(4), alpha)
     for size in (3, 9, 21):
         np.testing.assert_allclose(hybrid_image(filt, frame, size, "residual"),
-                                   hybrid_image(filt, frame, size, "additive"), atol=1e-6)
+                                   hybrid_image(filt, frame, size, "multiplicative"), atol=1e-6)
 
 
 def test_metric_rule_keeps_detail_the_far_field_lacks_and_drops_noise_it_does_not(filt):

@@ -11,11 +11,11 @@
   amplitude and is scaled by the change of the far field's shading from the capture light to the render light
   (guarded as ``multiplicative``). Under the capture light ``S_c = S`` and it is ``additive``; under another light
   it costs a second far-field render.
-- ``residual``: ``I = S + g (h(G) - h(S_c))`` with the gain of ``ratio``: the far field whole, its own high band
-  included (texture and shading detail that a novel light changes, rendered under that light), plus the near
-  field's detail beyond what the far field showed under the capture light, scaled as in ``ratio``. Under the
-  capture light it is ``additive``; where the near field equals the far field under the capture light it is
-  the far field ``S`` under any light. Same cost as ``ratio``.
+- ``residual``: ``I = S + l(S) (h(G) / l(G) - h(S_c) / l(S_c))`` (both ratios guarded as above): the far field
+  whole, its own high band included (texture and shading detail that a novel light changes, rendered under
+  that light), plus the near field's relative detail beyond the far field's relative detail under the capture
+  light. Under the capture light it is ``multiplicative``; where the near field equals the far field under the
+  capture light it is the far field ``S`` under any light. Same cost as ``ratio``.
 All modes give ``I = G`` where ``l(S) = l(G)`` (the far field matches the near field's low band, as at the
 capture pose under the capture light). Arrays are un-premultiplied linear RGB (H, W, 3); numpy only.
 """
@@ -28,6 +28,8 @@ import numpy as np
 
 DetailMode = Literal["additive", "multiplicative", "ratio", "residual"]
 DETAIL_MODES: tuple[str, ...] = ("additive", "multiplicative", "ratio", "residual")
+SINGLE_GAIN_MODES: tuple[str, ...] = ("additive", "multiplicative", "ratio")
+"""The modes whose hybrid is ``l(S) + g h(G)`` (:func:`detail_gain`)."""
 CAPTURE_FAR_FIELD_MODES: tuple[str, ...] = ("ratio", "residual")
 """The modes that read the far field under the capture light ``S_c`` (a second far-field render under a novel
 light)."""
@@ -46,12 +48,13 @@ def guarded_ratio(numerator: np.ndarray, denominator: np.ndarray) -> np.ndarray:
 
 def detail_gain(low_far: np.ndarray, low_near: np.ndarray, mode: str,
                 low_far_capture: np.ndarray | None = None) -> np.ndarray | float:
-    """The gain g of the near field's high band ``h(G)`` (module docstring): 1 for ``additive``, the guarded
-    ``l(S) / l(G)`` for ``multiplicative``, the guarded ``l(S) / l(S_c)`` for ``ratio`` and ``residual``
-    (``low_far_capture`` None: the render light is the capture light, g = 1)."""
-    if mode not in DETAIL_MODES:
-        raise ValueError(f"detail mode must be one of {DETAIL_MODES}, not {mode!r}")
-    if mode == "additive" or (mode in CAPTURE_FAR_FIELD_MODES and low_far_capture is None):
+    """The gain g of the near field's high band ``h(G)`` in ``l(S) + g h(G)`` (module docstring): 1 for
+    ``additive``, the guarded ``l(S) / l(G)`` for ``multiplicative``, the guarded ``l(S) / l(S_c)`` for ``ratio``
+    (``low_far_capture`` None: the render light is the capture light, g = 1). ``residual`` has two gains
+    (:func:`hybrid_colour`)."""
+    if mode not in SINGLE_GAIN_MODES:
+        raise ValueError(f"detail mode must be one of {SINGLE_GAIN_MODES} for a gain, not {mode!r}")
+    if mode == "additive" or (mode == "ratio" and low_far_capture is None):
         return 1.0
     return guarded_ratio(low_far, low_near if mode == "multiplicative" else low_far_capture)
 
@@ -60,12 +63,15 @@ def hybrid_colour(high_near: np.ndarray, low_near: np.ndarray, low_far: np.ndarr
                   low_far_capture: np.ndarray | None = None, high_far: np.ndarray | None = None,
                   high_far_capture: np.ndarray | None = None) -> np.ndarray:
     """``l(S) + g h(G)`` (un-premultiplied, float32) for detail ``mode`` (:func:`detail_gain`); for ``residual``
-    ``l(S) + h(S) + g (h(G) - h(S_c))``, which needs ``high_far`` = h(S) and, under a novel light,
-    ``high_far_capture`` = h(S_c) (None: the render light is the capture light, S_c = S)."""
-    gain = detail_gain(low_far, low_near, mode, low_far_capture)
+    ``l(S) + h(S) + g_m h(G) - g_r h(S_c)`` with the gains of ``multiplicative`` and ``ratio``, which needs
+    ``high_far`` = h(S) and, under a novel light, ``low_far_capture`` and ``high_far_capture`` = l(S_c), h(S_c)
+    (None: the render light is the capture light, S_c = S, and it is ``multiplicative``)."""
     if mode != "residual":
-        return (low_far + gain * high_near).astype(np.float32)
+        return (low_far + detail_gain(low_far, low_near, mode, low_far_capture) * high_near).astype(np.float32)
     if high_far is None:
         raise ValueError("detail mode 'residual' needs the far field's high band h(S)")
-    seen = high_far if high_far_capture is None else high_far_capture
-    return (low_far + high_far + gain * (high_near - seen)).astype(np.float32)
+    near_gain = detail_gain(low_far, low_near, "multiplicative")
+    if high_far_capture is None:
+        return (low_far + near_gain * high_near).astype(np.float32)
+    far_gain = detail_gain(low_far, low_near, "ratio", low_far_capture)
+    return (low_far + high_far + near_gain * high_near - far_gain * high_far_capture).astype(np.float32)

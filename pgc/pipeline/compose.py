@@ -12,7 +12,7 @@
   (:func:`hide_behind`);
 - ``l``: the alpha-aware low-pass of the filter role, ``h = 1 - l``; with ``detail = 'multiplicative'`` the
   hybrid is ``l(S) G / l(G)`` instead, with ``'ratio'`` ``l(S) + h(G) l(S) / l(S_c)`` (``S_c`` the far field
-  under the capture light), with ``'residual'`` ``S + (h(G) - h(S_c)) l(S) / l(S_c)``
+  under the capture light), with ``'residual'`` ``S + l(S) (h(G) / l(G) - h(S_c) / l(S_c))``
   (:mod:`pgc.filtering.detail`).
 Compositing is done on un-premultiplied colours (render colour / alpha) so the alpha-aware blur sees the
 garment's own colour; the result is re-composited over the background with the alpha of the layer that
@@ -168,7 +168,7 @@ def compose(near: RenderOutput, far: RenderOutput, filt: Filter, kernel_size: in
     turns it off. ``detail``: how the near field's high band enters, ``'additive'`` (``l(S) + h(G)``, the
     paper), ``'multiplicative'`` (``l(S) G / l(G)``), ``'ratio'`` (``l(S) + h(G) l(S) / l(S_c)``, with
     ``far_capture`` the far field under the capture light; None: the render light is the capture light) or
-    ``'residual'`` (``S + (h(G) - h(S_c)) l(S) / l(S_c)``), see :mod:`pgc.filtering.detail`."""
+    ``'residual'`` (``S + l(S) (h(G) / l(G) - h(S_c) / l(S_c))``), see :mod:`pgc.filtering.detail`."""
     if silhouette not in ("near", "far"):
         raise ValueError(f"compose: silhouette must be 'near' or 'far', not {silhouette!r}")
     g, s = unpremultiply(near), unpremultiply(far)

@@ -47,9 +47,10 @@ class RenderSettings(Options):
         "capture-light amplitude under any light), 'multiplicative' = l(S) G / l(G) (the detail scales with the far "
         "field's shading, so it follows a novel light), 'ratio' = l(S) + h(G) l(S) / l(S_c) with S_c the far field "
         "under the capture light (additive under the capture light; under another light a second far-field render "
-        "per frame), 'residual' = S + (h(G) - h(S_c)) l(S) / l(S_c): the whole far field, its own high band relit, "
-        "plus the near field's detail beyond the far field's under the capture light (additive under the capture "
-        "light; the same second render); the ratios are guarded where their denominator is near 0"))
+        "per frame), 'residual' = S + l(S) (h(G) / l(G) - h(S_c) / l(S_c)): the whole far field, its own high band "
+        "relit, plus the near field's relative detail beyond the far field's under the capture light "
+        "(multiplicative under the capture light; the same second render); the ratios are guarded where their "
+        "denominator is near 0"))
 
 
 def metric_role(settings: RenderSettings) -> dict[str, str]:
