@@ -6,7 +6,7 @@ import pytest
 
 from pgc import config as config_mod
 from pgc.errors import PGCConfigError
-from pgc.filtering.detail import DETAIL_MODES, GAIN_FLOOR, MAX_GAIN, detail_gain
+from pgc.filtering.detail import DETAIL_MODES, GAIN_FLOOR, MAX_GAIN, detail_gain, hybrid_colour
 from pgc.pipeline.compose import compose, unpremultiply
 from pgc.pipeline.render import same_light
 from pgc.registry import default_registry
@@ -105,6 +105,8 @@ def test_residual_detail_keeps_the_relit_far_field_and_adds_the_near_fields_exce
     assert np.abs(ratio.hybrid - relit.color)[inside].mean() > 0.05  # 'ratio' scales the capture's detail instead
     np.testing.assert_array_equal(compose(near, albedo, filt, 9, detail="residual").hybrid,
                                   compose(near, albedo, filt, 9, detail="multiplicative").hybrid)
+    with pytest.raises(ValueError, match="needs h\\(S\\)"):
+        hybrid_colour(high_g, low_g, low_s, "residual", low_c, None, high_c)
 
 
 def test_same_light_compares_radiance_map_and_rotation():

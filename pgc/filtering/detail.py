@@ -1,4 +1,5 @@
-"""How the near field's detail enters the hybrid: ``I = l(S) + g * h(G)`` with a per-pixel, per-channel gain g.
+"""How the near field's detail enters the hybrid: ``I = l(S) + g * h(G)`` with a per-pixel, per-channel gain g
+(``residual`` adds the far field's own high band).
 
 - ``additive`` (the paper): ``g = 1``, so ``I = h(G) + l(S)``. The detail keeps the amplitude it had under the
   capture light, whatever light the far field is rendered under.
@@ -68,10 +69,10 @@ def hybrid_colour(high_near: np.ndarray, low_near: np.ndarray, low_far: np.ndarr
     (None: the render light is the capture light, S_c = S, and it is ``multiplicative``)."""
     if mode != "residual":
         return (low_far + detail_gain(low_far, low_near, mode, low_far_capture) * high_near).astype(np.float32)
-    if high_far is None:
-        raise ValueError("detail mode 'residual' needs the far field's high band h(S)")
     near_gain = detail_gain(low_far, low_near, "multiplicative")
     if high_far_capture is None:
         return (low_far + near_gain * high_near).astype(np.float32)
+    if high_far is None or low_far_capture is None:
+        raise ValueError("detail mode 'residual' under a novel light needs h(S) and l(S_c) beside h(S_c)")
     far_gain = detail_gain(low_far, low_near, "ratio", low_far_capture)
     return (low_far + high_far + near_gain * high_near - far_gain * high_far_capture).astype(np.float32)
