@@ -103,3 +103,44 @@ def test_truth_frames_are_rendered_once_with_the_bytes_of_a_whole_sequence(tiny_
     n = len(frames)
     assert rendered == [n, n - 1]  # folder b: every frame read back
     assert len(list((tmp_path / "cache" / "frames").glob("*.npz"))) == 2 * n - 1
+
+
+@pytest.mark.slow
+def test_an_interrupted_truth_keeps_the_frames_it_finished(tiny_demo, tmp_path, monkeypatch):
+    """Each truth frame is kept as soon as it is rendered: an eval stopped during its second frame keeps the first,
+    and the rerun renders only the others."""
+    import pgc.synth.frames as frames_mod
+    from pgc import config
+    from pgc.events import Reporter
+    from pgc.pipeline.evaluate import rendered_frames, synthetic_ground_truth
+
+    monkeypatch.setenv("PGC_CAPTURE_CACHE", str(tmp_path / "cache"))
+    cfg = config.load(TINY_CONFIG)
+    run = sorted((tiny_demo / "runs").iterdir())[0]
+    mine = tmp_path / run.name
+    shutil.copytree(run, mine, ignore=shutil.ignore_patterns("gt"))
+    meta, frames = rendered_frames(mine)
+    capture = Path(json.loads((mine / "run.json").read_text())["capture"])
+    real_colour, views = frames_mod.converged_color, []
+
+    def stopped_in_the_second_frame(*args, **kwargs):
+        views.append(1)
+        if len(views) > len(meta["cameras"]):
+            raise KeyboardInterrupt
+        return real_colour(*args, **kwargs)
+
+    monkeypatch.setattr(frames_mod, "converged_color", stopped_in_the_second_frame)
+    with pytest.raises(KeyboardInterrupt):
+        synthetic_ground_truth(mine, capture, frames, meta["cameras"], cfg, Reporter.silent())
+    assert len(list((tmp_path / "cache" / "frames").glob("*.npz"))) == 1
+    monkeypatch.setattr(frames_mod, "converged_color", real_colour)
+    real_render, rendered = frames_mod.render_frames, []
+
+    def counted(*args, **kwargs):
+        out = real_render(*args, **kwargs)
+        rendered.append(len(out))
+        return out
+
+    monkeypatch.setattr(frames_mod, "render_frames", counted)
+    truth = synthetic_ground_truth(mine, capture, frames, meta["cameras"], cfg, Reporter.silent())
+    assert rendered == [len(frames) - 1] and len(truth) == len(frames)

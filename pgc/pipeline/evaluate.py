@@ -183,9 +183,9 @@ def synthetic_ground_truth(run_dir: Path, capture_dir: Path, frames: list[int], 
         rendered = render_frames(gt, gt_garment[todo], body_frames[todo], cameras, [lights[i] for i in todo],
                                  spp=settings.gt_spp, gt_samples=GT_SAMPLES, sampler=GT_SAMPLER, reporter=reporter,
                                  renderer=renderer, frame_seeds=todo, noise=settings.gt_noise,
-                                 max_spp=settings.gt_max_spp)
+                                 max_spp=settings.gt_max_spp,
+                                 on_frame=lambda j, frame: kept.store(keys[todo[j]], frame))  # kept as it is done
         for i, frame in zip(todo, rendered):
-            kept.store(keys[i], frame)
             out[i] = frame
     for p, frame in zip(paths, out):
         save_npz(p, **frame)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
@@ -93,7 +93,8 @@ def render_frames(scene_dir_or_gt: str | os.PathLike | GroundTruth, garment_vert
                   spp: int | None = None, seed: int = 0, gt_samples: int = GT_SAMPLES, sampler: str = GT_SAMPLER,
                   reporter: Reporter | None = None, *, renderer: SceneRenderer,
                   frame_seeds: list[int] | None = None, noise: float = 0.0,
-                  max_spp: int | None = None) -> list[dict[str, np.ndarray]]:
+                  max_spp: int | None = None,
+                  on_frame: Callable[[int, dict[str, np.ndarray]], None] | None = None) -> list[dict[str, np.ndarray]]:
     """Render T frames of the ground-truth scene with new vertices, by ``renderer`` (the configuration's, see
     :func:`pgc.synth.render.scene_renderer`).
 
@@ -108,7 +109,8 @@ def render_frames(scene_dir_or_gt: str | os.PathLike | GroundTruth, garment_vert
     and, with a ``noise`` target, 'noise' the relative noise reached. Fibres and the
     near-field detail follow the garment (both are embedded in its faces). The first pass of frame ``t`` and
     camera ``c`` is seeded by ``seed * 100003 + frame_seeds[t] * 1009 + c`` (``frame_seeds`` default
-    ``0 .. T-1``), so that a subset of a sequence renders as it does within it.
+    ``0 .. T-1``), so that a subset of a sequence renders as it does within it. ``on_frame(t, frame)`` is called
+    as each frame is done (to keep it before the next one starts: an interrupted render loses one frame at most).
     """
     gt = scene_dir_or_gt if isinstance(scene_dir_or_gt, GroundTruth) else read_ground_truth(scene_dir_or_gt)
     gv = _as_sequence("garment_vertices", garment_vertices, len(gt.garment.vertices))
@@ -148,6 +150,8 @@ def render_frames(scene_dir_or_gt: str | os.PathLike | GroundTruth, garment_vert
                 out["garment_mask"].append(layers["garment_coverage"])
                 out["segmentation"].append(layers["segmentation"])
             frames.append({k: np.stack(v) for k, v in out.items()})
+            if on_frame is not None:
+                on_frame(t, frames[-1])
             st.progress(t + 1)
     return frames
 
