@@ -67,16 +67,10 @@ def test_the_cache_is_off_with_the_capture_cache(monkeypatch, tmp_path):
     assert frame_cache_root() == tmp_path / "c" / "frames"
 
 
-@pytest.mark.slow
-def test_truth_frames_are_rendered_once_with_the_bytes_of_a_whole_sequence(tiny_demo, tmp_path, monkeypatch):
-    """Two motions of the tiny demo: the first renders every frame, the second all but frame 0 (the capture pose);
-    a new folder renders nothing; every frame equals the demo's own truth, rendered whole with the cache off."""
+def count_rendered_frames(monkeypatch) -> list[int]:
+    """Wrap :func:`pgc.synth.frames.render_frames`; the returned list gets the number of frames of each call."""
     import pgc.synth.frames as frames_mod
-    from pgc import config
-    from pgc.events import Reporter
-    from pgc.pipeline.evaluate import rendered_frames, synthetic_ground_truth
 
-    monkeypatch.setenv("PGC_CAPTURE_CACHE", str(tmp_path / "cache"))
     real, rendered = frames_mod.render_frames, []
 
     def counted(*args, **kwargs):
@@ -85,6 +79,19 @@ def test_truth_frames_are_rendered_once_with_the_bytes_of_a_whole_sequence(tiny_
         return out
 
     monkeypatch.setattr(frames_mod, "render_frames", counted)
+    return rendered
+
+
+@pytest.mark.slow
+def test_truth_frames_are_rendered_once_with_the_bytes_of_a_whole_sequence(tiny_demo, tmp_path, monkeypatch):
+    """Two motions of the tiny demo: the first renders every frame, the second all but frame 0 (the capture pose);
+    a new folder renders nothing; every frame equals the demo's own truth, rendered whole with the cache off."""
+    from pgc import config
+    from pgc.events import Reporter
+    from pgc.pipeline.evaluate import rendered_frames, synthetic_ground_truth
+
+    monkeypatch.setenv("PGC_CAPTURE_CACHE", str(tmp_path / "cache"))
+    rendered = count_rendered_frames(monkeypatch)
     cfg = config.load(TINY_CONFIG)
     runs = sorted((tiny_demo / "runs").iterdir())[:2]
     for copy in ("a", "b"):
@@ -134,13 +141,6 @@ def test_an_interrupted_truth_keeps_the_frames_it_finished(tiny_demo, tmp_path, 
         synthetic_ground_truth(mine, capture, frames, meta["cameras"], cfg, Reporter.silent())
     assert len(list((tmp_path / "cache" / "frames").glob("*.npz"))) == 1
     monkeypatch.setattr(frames_mod, "converged_color", real_colour)
-    real_render, rendered = frames_mod.render_frames, []
-
-    def counted(*args, **kwargs):
-        out = real_render(*args, **kwargs)
-        rendered.append(len(out))
-        return out
-
-    monkeypatch.setattr(frames_mod, "render_frames", counted)
+    rendered = count_rendered_frames(monkeypatch)
     truth = synthetic_ground_truth(mine, capture, frames, meta["cameras"], cfg, Reporter.silent())
     assert rendered == [len(frames) - 1] and len(truth) == len(frames)
