@@ -21,8 +21,8 @@ class LeastSquaresResult:
     iterations: int
     """Jacobians evaluated."""
     stopped: str
-    """'converged' (an accepted step below the tolerance), 'no_descent' (no damping found a lower cost) or
-    'iterations' (the bound)."""
+    """'converged' (the step at the initial damping below the tolerance), 'no_descent' (no damping found a lower
+    cost) or 'iterations' (the bound)."""
 
 
 def levenberg_marquardt(residual: Callable[[np.ndarray], np.ndarray],
@@ -33,8 +33,11 @@ def levenberg_marquardt(residual: Callable[[np.ndarray], np.ndarray],
     residuals). Each step solves ``(J^T J + damping diag(J^T J)) dx = -J^T r`` (Marquardt's scaling), then
     ``project`` maps the trial point into the feasible set (e.g. clamps to bounds); a trial that lowers the cost
     is accepted and the damping divided by 3, else the damping is multiplied by 4 and the step solved again.
-    Stops after ``iterations`` Jacobians, once an accepted step moves no coordinate more than
-    ``step_tolerance``, or when the damping exceeds :data:`MAX_DAMPING`.
+    Stops after ``iterations`` Jacobians, when the damping exceeds :data:`MAX_DAMPING`, or once a step is accepted
+    from a point where the step at the initial damping moves no coordinate more than ``step_tolerance``. The
+    test is on that step, not on the accepted one: a step shortened by a raised damping is small because the
+    trust region shrank, not because the point is a minimum (on a slope where long steps fail, as they do along
+    a noisy Jacobian's wrong direction, the accepted steps are tiny far from the minimum).
 
     Noisy residuals (Monte Carlo renders): ``residual`` may return two independent estimates ``(2, n)`` of the
     same expected residuals, and ``jacobian`` their Jacobians ``(2, n, p)``. The cost is then ``r_a . r_b``,
@@ -44,6 +47,7 @@ def levenberg_marquardt(residual: Callable[[np.ndarray], np.ndarray],
     raised to at least 1e-9 of the largest: ``J_a^T J_a`` would add the Jacobian's own noise to the curvature,
     which shortens the steps along weakly determined directions to a crawl."""
     x = np.asarray(x0, np.float64).copy()
+    initial_damping = damping
     r = residual(x)
     cost = initial = _cost(r)
     for iteration in range(1, iterations + 1):
@@ -51,20 +55,26 @@ def levenberg_marquardt(residual: Callable[[np.ndarray], np.ndarray],
         Ja, Jb = (J, J) if J.ndim == 2 else J
         ra, rb = (r, r) if r.ndim == 1 else r
         JtJ, Jtr = _normal_matrix(Ja, Jb), (_dot(Ja, rb) + _dot(Jb, ra)) / 2.0
+        stationary = float(np.abs(_step(x, JtJ, Jtr, initial_damping, project) - x).max()) <= step_tolerance
         while True:
-            trial = project(x - np.linalg.solve(JtJ + damping * np.diag(np.diag(JtJ) + 1e-12), Jtr))
+            trial = _step(x, JtJ, Jtr, damping, project)
             r_trial = residual(trial)
             trial_cost = _cost(r_trial)
             if trial_cost < cost:
-                moved = float(np.abs(trial - x).max())
                 x, r, cost, damping = trial, r_trial, trial_cost, max(damping / 3.0, 1e-9)
                 break
             damping *= 4.0
             if damping > MAX_DAMPING:
                 return LeastSquaresResult(x, cost, initial, iteration, "no_descent")
-        if moved <= step_tolerance:
+        if stationary:
             return LeastSquaresResult(x, cost, initial, iteration, "converged")
     return LeastSquaresResult(x, cost, initial, iterations, "iterations")
+
+
+def _step(x: np.ndarray, JtJ: np.ndarray, Jtr: np.ndarray, damping: float,
+          project: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+    """The projected point of the step with Marquardt's scaled ``damping`` from ``x``."""
+    return project(x - np.linalg.solve(JtJ + damping * np.diag(np.diag(JtJ) + 1e-12), Jtr))
 
 
 def _cost(r: np.ndarray) -> float:

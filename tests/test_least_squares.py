@@ -56,3 +56,22 @@ def test_two_estimates_remove_the_bias_of_a_parameter_dependent_noise() -> None:
                               step_tolerance=1e-9)
     assert np.abs(both.x / [2.0, 1.5] - 1.0).max() < 0.05, both
     assert np.abs(one.x / [2.0, 1.5] - 1.0).max() > 0.2, one
+
+
+def test_a_step_shortened_by_raised_damping_is_not_convergence() -> None:
+    """``r(x) = x - x*`` with a Jacobian rotated by 89.9 degrees (a noisy Jacobian's worst case): only steps
+    shorter than about ``|r| / 286`` lower the cost, so the damping must rise before any step is accepted, and
+    that step is below the tolerance 0.1 away from the minimum. Stopping there as 'converged' would report a
+    slope as a minimum; the solver must go on, and every step it takes lowers the distance to x*."""
+    target = np.array([1.0, -2.0])
+    angle = np.radians(89.9)
+    rotation = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    start = target + np.array([0.1, 0.0])
+    result = levenberg_marquardt(lambda x: x - target, lambda x, r: rotation, start, iterations=40,
+                                 step_tolerance=1e-3)
+    assert result.stopped == "iterations" and np.linalg.norm(result.x - target) > 0.09, result
+    assert np.linalg.norm(result.x - target) < np.linalg.norm(start - target)
+    assert result.cost < result.initial_cost
+    exact = levenberg_marquardt(lambda x: x - target, lambda x, r: np.eye(2), start, iterations=40,
+                                step_tolerance=1e-3)
+    assert exact.stopped == "converged" and np.linalg.norm(exact.x - target) < 1e-3, exact

@@ -102,8 +102,8 @@ class MaterialFitSettings(Options):
     polish_iterations: int = count(10, 1, 1000)
     """Most Jacobians of the polish."""
     polish_tolerance: float = Field(1e-3, gt=0.0)
-    """The polish has converged when an accepted step moves no variable more than this (0.1 % of a
-    parameter's range, 0.1 % relative in the radiance)."""
+    """The polish has converged when the step at its initial damping moves no variable more than this (0.1 % of
+    a parameter's range, 0.1 % relative in the radiance; :func:`pgc.least_squares.levenberg_marquardt`)."""
     max_image_side: int = count(96, 8, 16384)
     """Images are area-downsampled so their longer side is at most this (fit cost ~ pixels)."""
     holdout_every: int = count(4, 2, 10_000)
